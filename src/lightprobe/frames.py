@@ -1,0 +1,102 @@
+"""Coordinate frames and rotations.
+
+**World frame** (SPEC §1): right-handed, +Y up, the *front* of a panorama is −Z, image right is +X. Every layout in
+:mod:`lightprobe.layouts` maps pixels to directions in this frame, so converting between layouts never mirrors or
+rotates the scene.
+
+A :class:`Frame` is a named orthogonal 3×3 matrix ``to_frame`` with ``d_frame = to_frame @ d_world``. It may be a
+mirror (determinant −1): ``rh2001`` is the world frame with z negated, the frame in which Ramamoorthi & Hanrahan's
+Figure 2 is printed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Frame:
+    """A named frame: ``d_frame = to_frame @ d_world`` for unit direction vectors."""
+
+    name: str
+    to_frame: np.ndarray = field(repr=False)
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        m = np.asarray(self.to_frame, dtype=np.float64)
+        if m.shape != (3, 3) or not np.allclose(m @ m.T, np.eye(3), atol=1e-9):
+            raise ValueError(f"frame {self.name!r}: to_frame must be an orthogonal 3×3 matrix")
+        object.__setattr__(self, "to_frame", m)
+
+    @property
+    def is_mirror(self) -> bool:
+        """True when the frame has the opposite handedness of the world frame."""
+        return bool(np.linalg.det(self.to_frame) < 0)
+
+    def from_world(self, d: np.ndarray) -> np.ndarray:
+        """World-frame directions (..., 3) → this frame."""
+        return np.asarray(d) @ self.to_frame.T
+
+    def to_world(self, d: np.ndarray) -> np.ndarray:
+        """Directions (..., 3) in this frame → world frame."""
+        return np.asarray(d) @ self.to_frame
+
+
+WORLD = Frame("world", np.eye(3), "right-handed, +Y up, front of the panorama −Z, image right +X")
+RH2001 = Frame(
+    "rh2001",
+    np.diag([1.0, 1.0, -1.0]),
+    "Ramamoorthi & Hanrahan's prefilter frame: angular-probe centre +z, image right +x, up +y; (x, y, -z) of world",
+)
+
+FRAMES: dict[str, Frame] = {f.name: f for f in (WORLD, RH2001)}
+
+
+def frame(name: str | Frame) -> Frame:
+    """Look a frame up by name (``world``, ``rh2001``, …); a :class:`Frame` passes through."""
+    if isinstance(name, Frame):
+        return name
+    try:
+        return FRAMES[name]
+    except KeyError:
+        raise ValueError(f"unknown frame {name!r}; known frames: {', '.join(FRAMES)}") from None
+
+
+def rotation_x(deg: float) -> np.ndarray:
+    """Right-handed rotation by ``deg`` degrees about +X (counter-clockwise looking from +X toward the origin)."""
+    c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
+    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+
+
+def rotation_y(deg: float) -> np.ndarray:
+    """Right-handed rotation by ``deg`` degrees about +Y (up)."""
+    c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
+    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+
+
+def rotation_z(deg: float) -> np.ndarray:
+    """Right-handed rotation by ``deg`` degrees about +Z (which points backwards, out of the panorama's front)."""
+    c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+
+
+def rotation_from_ypr(yaw: float, pitch: float, roll: float) -> np.ndarray:
+    """Rotation matrix R = R_y(yaw) · R_x(pitch) · R_z(roll), angles in degrees, world frame.
+
+    Applied to an environment, R moves the light that was in direction d to direction R·d: a positive yaw turns the
+    panorama counter-clockwise seen from above (the front, −Z, moves toward −X), a positive pitch lifts the front
+    toward +Y, a positive roll turns the view counter-clockwise about the backward axis +Z.
+    """
+    return rotation_y(yaw) @ rotation_x(pitch) @ rotation_z(roll)
+
+
+def as_rotation(rotation: np.ndarray | tuple[float, float, float]) -> np.ndarray:
+    """A 3×3 proper rotation from a matrix or a (yaw, pitch, roll) triple in degrees; refuses mirrors."""
+    r = np.asarray(rotation, dtype=np.float64)
+    if r.shape == (3,):
+        return rotation_from_ypr(*r)
+    if r.shape != (3, 3) or not np.allclose(r @ r.T, np.eye(3), atol=1e-6) or np.linalg.det(r) < 0:
+        raise ValueError("a rotation must be a proper orthogonal 3×3 matrix or (yaw, pitch, roll) in degrees")
+    return r

@@ -1,0 +1,561 @@
+"""Environment-map layouts: pixels ↔ directions, exact per-pixel solid angles, validity masks (SPEC §2).
+
+Conventions shared by every layout:
+
+* Directions are unit vectors in the **world frame** (:mod:`lightprobe.frames`: +Y up, front −Z, right +X).
+* Pixels are stored in an array of shape ``grid + (3,)``: ``grid`` is ``(H, W)`` for the flat layouts and
+  ``(6, N, N)`` for ``cube`` (faces +X, −X, +Y, −Y, +Z, −Z). Row 0 is the top row as displayed.
+* Continuous coordinates are ``(face, u, v)`` with ``u, v ∈ [0, 1]`` across the face (the whole image for flat
+  layouts, ``face`` = 0). Pixel (row, col) has its centre at ``u = (col + ½)/W``, ``v = (row + ½)/H``.
+* Each layout is a pure forward/inverse pair — :meth:`Layout.uv_to_dir` and :meth:`Layout.dir_to_uv` — plus the
+  solid-angle density ``dω / (du dv)`` and exact per-pixel solid angles summing to 4π.
+
+``size`` (used by ``lightprobe convert --size``) is the image height for ``latlong``, ``angular`` and ``sphere``
+and the face edge N for ``cube``, ``cross`` (3N × 4N) and ``hcross`` (4N × 3N).
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from functools import lru_cache
+
+import numpy as np
+
+from .errors import LayoutError
+from .kernels import gather
+
+Grid = tuple[int, ...]
+PAD = 2  # border texels of padded images: enough for a cubic B-spline's 4×4 taps
+
+# Gauss–Legendre nodes on [0, 1] for integrating the smooth interior of disc layouts.
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(4)
+_GL_X, _GL_W = (_GL_X + 1) / 2, _GL_W / 2
+_RIM_SUBSAMPLES = 24  # midpoint subsamples per axis for pixels the disc's rim cuts through
+
+
+class Layout(ABC):
+    """A mapping between the pixels of an image (or six faces) and directions on the sphere."""
+
+    name: str
+    faces: int = 1
+    aspect: tuple[int, int] = (1, 1)  # (width, height) units of a flat layout's image
+
+    # ---- shapes -------------------------------------------------------------------------------------------------
+    def grid_shape(self, size: int) -> Grid:
+        """The pixel grid for ``size`` (see the module docstring for what ``size`` means)."""
+        if size < 1:
+            raise LayoutError(f"{self.name}: size must be at least 1, got {size}")
+        return (size * self.aspect[1], size * self.aspect[0])
+
+    def size_of(self, grid: Grid) -> int:
+        """Inverse of :meth:`grid_shape`."""
+        return grid[0] // self.aspect[1]
+
+    def check_grid(self, grid: Grid) -> None:
+        """Raise :class:`LayoutError` if an image of pixel grid ``grid`` cannot be in this layout."""
+        if len(grid) != 2 or grid[0] < 1 or grid[1] < 1:
+            raise LayoutError(f"{self.name} needs a flat H×W image, got grid {grid}")
+        h, w = grid
+        aw, ah = self.aspect
+        if w * ah != h * aw or h % ah or w % aw:
+            raise LayoutError(f"a {w}×{h} image does not fit the {self.name} layout (needs width:height = {aw}:{ah})")
+
+    # ---- the forward/inverse pair -------------------------------------------------------------------------------
+    @abstractmethod
+    def uv_to_dir(self, face: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Continuous coordinates → unit world directions (..., 3). Undefined (NaN) outside the valid region."""
+
+    @abstractmethod
+    def dir_to_uv(self, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Unit world directions (..., 3) → (face, u, v). Total: every direction has a place."""
+
+    @abstractmethod
+    def uv_density(self, face: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Solid angle per unit (u, v) area, ``dω / (du dv)``; 0 outside the valid region."""
+
+    # ---- per-pixel quantities -----------------------------------------------------------------------------------
+    def pixel_centres(self, grid: Grid) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(face, u, v) of every pixel centre, each of shape ``grid``."""
+        h, w = grid[-2:]
+        v, u = np.meshgrid((np.arange(h) + 0.5) / h, (np.arange(w) + 0.5) / w, indexing="ij")
+        if self.faces == 1:
+            return np.zeros(grid, dtype=np.int64), u, v
+        face = np.broadcast_to(np.arange(self.faces)[:, None, None], grid)
+        return face, np.broadcast_to(u, grid), np.broadcast_to(v, grid)
+
+    def directions(self, grid: Grid) -> np.ndarray:
+        """World direction of every pixel centre, shape ``grid + (3,)``; zero for invalid pixels."""
+        d = self.uv_to_dir(*self.pixel_centres(grid))
+        return np.where(self.valid_mask(grid)[..., None], np.nan_to_num(d), 0.0)
+
+    @abstractmethod
+    def solid_angles(self, grid: Grid) -> np.ndarray:
+        """Exact solid angle (steradians) of every pixel, shape ``grid``; they sum to 4π. 0 for invalid pixels."""
+
+    def valid_mask(self, grid: Grid) -> np.ndarray:
+        """True for pixels that cover part of the sphere."""
+        return self.solid_angles(grid) > 0
+
+    def pixel_coords(self, d: np.ndarray, grid: Grid) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Directions → (face, x, y) continuous pixel coordinates (pixel centre of column c is x = c)."""
+        face, u, v = self.dir_to_uv(d)
+        h, w = grid[-2:]
+        return face, u * w - 0.5, v * h - 0.5
+
+    # ---- lookup -------------------------------------------------------------------------------------------------
+    def padded(self, data: np.ndarray, pad: int = PAD) -> tuple[np.ndarray, np.ndarray]:
+        """``data`` with a border of ``pad`` texels taken from across its seams and poles, and a validity mask.
+
+        Returns ``(img, valid)`` of shapes (F, H+2p, W+2p, C) and (F, H+2p, W+2p), float32. The border texel at
+        extended coordinates (u, v) holds the pixel nearest to the direction ``uv_to_dir(u, v)``: this works for any
+        layout whose formulas extend past the face edge (latlong: past a pole is the ring at azimuth + π; cube: the
+        next face), so bilinear and cubic lookups are seamless without knowing the layout."""
+        grid = data.shape[:-1]
+        face, row, col = _padding_index(self, grid, pad)
+        img = np.ascontiguousarray(data.reshape((self.faces,) + grid[-2:] + data.shape[-1:])[face, row, col])
+        valid = self.valid_mask(grid).reshape((self.faces,) + grid[-2:])[face, row, col].astype(np.float32)
+        return img.astype(np.float32), valid
+
+    def sampler(self, data: np.ndarray, kernel: str = "bilinear"):
+        """A function ``d (..., 3) → values (..., C)``: lookup of ``data`` (``grid + (C,)``) at world directions,
+        seam- and pole-correct. ``kernel``: ``bilinear``, or ``bspline`` (cubic B-spline, for resampling)."""
+        grid = data.shape[:-1]
+        img, valid = self.padded(data, PAD)
+
+        def lookup(d: np.ndarray) -> np.ndarray:
+            face, x, y = self.pixel_coords(d, grid)
+            return gather(img, valid, face, x + PAD, y + PAD, kernel)
+
+        return lookup
+
+    def sample(self, data: np.ndarray, d: np.ndarray, kernel: str = "bilinear") -> np.ndarray:
+        """Lookup of ``data`` at directions ``d`` (one-off; see :meth:`sampler`)."""
+        return self.sampler(data, kernel)(d)
+
+    def default_size(self, valid_pixels: int) -> int:
+        """A size whose valid pixel count is close to ``valid_pixels`` (keeps the angular resolution)."""
+        per_size2 = self.valid_fraction * self.aspect[0] * self.aspect[1] * self.faces
+        return max(1, int(round(np.sqrt(valid_pixels / per_size2))))
+
+    valid_fraction: float = 1.0
+
+    def __repr__(self) -> str:
+        return f"<layout {self.name}>"
+
+
+@lru_cache(maxsize=16)
+def _padding_index(lay: Layout, grid: Grid, pad: int):
+    """(face, row, col) index arrays of the padded image of :meth:`Layout.padded` (cached per grid)."""
+    h, w = grid[-2:]
+    rows, cols = np.arange(-pad, h + pad), np.arange(-pad, w + pad)
+    v, u = np.meshgrid((rows + 0.5) / h, (cols + 0.5) / w, indexing="ij")
+    face = np.broadcast_to(np.arange(lay.faces)[:, None, None], (lay.faces,) + u.shape)
+    u, v = np.broadcast_to(u, face.shape), np.broadcast_to(v, face.shape)
+    f, uu, vv = lay.dir_to_uv(lay.uv_to_dir(face, u, v))
+    row = np.clip(np.floor(vv * h), 0, h - 1).astype(np.int64)
+    col = np.clip(np.floor(uu * w), 0, w - 1).astype(np.int64)
+    inside = (u > 0) & (u < 1) & (v > 0) & (v < 1)  # interior texels are themselves, exactly
+    row = np.where(inside, np.floor(v * h).astype(np.int64), row)
+    col = np.where(inside, np.floor(u * w).astype(np.int64), col)
+    return np.where(inside, face, f), row, col
+
+
+# ============================================================================================================ latlong
+class LatLong(Layout):
+    """Equirectangular, W = 2H: θ = πv from +Y, φ = 2π(u − ½); centre column → −Z, u = ¾ → +X."""
+
+    name = "latlong"
+    aspect = (2, 1)
+
+    def uv_to_dir(self, face, u, v):
+        theta, phi = np.pi * np.asarray(v), 2 * np.pi * (np.asarray(u) - 0.5)
+        st = np.sin(theta)
+        return np.stack([st * np.sin(phi), np.cos(theta), -st * np.cos(phi)], axis=-1)
+
+    def dir_to_uv(self, d):
+        d = np.asarray(d, dtype=np.float64)
+        theta = np.arccos(np.clip(d[..., 1], -1.0, 1.0))
+        phi = np.arctan2(d[..., 0], -d[..., 2])
+        return np.zeros(d.shape[:-1], dtype=np.int64), phi / (2 * np.pi) + 0.5, theta / np.pi
+
+    def uv_density(self, face, u, v):
+        return 2 * np.pi**2 * np.sin(np.pi * np.asarray(v)) + 0 * np.asarray(u)
+
+    def solid_angles(self, grid):
+        self.check_grid(grid)
+        h, w = grid
+        cos_edges = np.cos(np.pi * np.arange(h + 1) / h)
+        band = (2 * np.pi / w) * (cos_edges[:-1] - cos_edges[1:])
+        return np.broadcast_to(band[:, None], grid).copy()
+
+    def valid_mask(self, grid):
+        return np.ones(grid, dtype=bool)
+
+
+# ============================================================================================================ discs
+class _DiscLayout(Layout):
+    """A square image whose valid region is the inscribed disc; rim pixels count with the part of them inside it."""
+
+    valid_fraction = np.pi / 4
+
+    def _disc_radius(self, u, v):
+        return np.hypot(2 * np.asarray(u) - 1, 1 - 2 * np.asarray(v))
+
+    def solid_angles(self, grid):
+        self.check_grid(grid)
+        return _disc_solid_angles(self, grid[0]).copy()
+
+    def _clamped_ab(self, u, v):
+        """Disc coordinates (a right, b up), pulled onto the rim where they fall outside it.
+
+        The whole rim of a disc layout is one direction, so a pixel the rim cuts through is given that direction
+        even when its centre lies just outside the disc."""
+        a, b = 2 * np.asarray(u) - 1, 1 - 2 * np.asarray(v)
+        r = np.hypot(a, b)
+        shrink = np.where(r > 1.0, 1.0 / np.maximum(r, 1e-300), 1.0)
+        return a * shrink, b * shrink
+
+    def padded(self, data, pad=PAD):
+        # nothing lies beyond a disc's rim: zero border with zero validity
+        img = np.pad(data.astype(np.float32), ((pad, pad), (pad, pad), (0, 0)))[None]
+        valid = np.pad(self.valid_mask(data.shape[:2]).astype(np.float32), pad)[None]
+        return img, valid
+
+
+def _quarter_disc_area(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Signed area of the rectangle between (0, 0) and (a, b) inside the unit disc (exact).
+
+    Inclusion–exclusion of this over a pixel's corners gives the pixel's exact area inside the disc."""
+    sign = np.sign(a) * np.sign(b)
+    a, b = np.minimum(np.abs(a), 1.0), np.minimum(np.abs(b), 1.0)
+    x_star = np.sqrt(np.clip(1 - b * b, 0.0, None))  # where the circle crosses height b
+    lo = np.minimum(a, x_star)
+
+    def circle_integral(x):  # ∫ √(1 − x²) dx
+        return (x * np.sqrt(np.clip(1 - x * x, 0.0, None)) + np.arcsin(x)) / 2
+
+    return sign * (b * lo + circle_integral(a) - circle_integral(lo))
+
+
+def _disc_pixel_classes(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """(interior, rim) masks of an n×n disc image: pixels wholly inside the disc, and pixels the rim cuts."""
+    edges = np.arange(n + 1) / n
+    a = np.abs(2 * edges - 1)
+    far_a = np.maximum(a[:-1], a[1:])  # per column (or row): the pixel's farthest and nearest |coordinate|
+    near_a = np.where((edges[:-1] < 0.5) & (edges[1:] > 0.5), 0.0, np.minimum(a[:-1], a[1:]))
+    far = np.hypot(far_a[None, :], far_a[:, None])
+    near = np.hypot(near_a[None, :], near_a[:, None])
+    return far <= 1.0, (near < 1.0) & (far > 1.0)
+
+
+@lru_cache(maxsize=8)
+def _disc_solid_angles(layout: _DiscLayout, n: int) -> np.ndarray:
+    """Integrate ``uv_density`` over every pixel of an n×n disc image.
+
+    Pixels wholly inside the disc: 4×4 Gauss–Legendre (the density is smooth there). Pixels the rim cuts through:
+    a fine midpoint rule, because the density jumps to 0 at the rim.
+    """
+    interior, rim = _disc_pixel_classes(n)
+    omega = np.zeros((n, n))
+    rows, cols = np.nonzero(interior)
+    u = (cols[:, None, None] + _GL_X[None, None, :]) / n
+    v = (rows[:, None, None] + _GL_X[None, :, None]) / n
+    wts = _GL_W[None, :, None] * _GL_W[None, None, :]
+    omega[rows, cols] = (layout.uv_density(0, u, v) * wts).sum(axis=(1, 2)) / n**2
+
+    rows, cols = np.nonzero(rim)
+    sub = (np.arange(_RIM_SUBSAMPLES) + 0.5) / _RIM_SUBSAMPLES
+    u = (cols[:, None, None] + sub[None, None, :]) / n
+    v = (rows[:, None, None] + sub[None, :, None]) / n
+    omega[rows, cols] = layout.uv_density(0, u, v).mean(axis=(1, 2)) / n**2
+    omega.setflags(write=False)
+    return omega
+
+
+class Angular(_DiscLayout):
+    """Debevec angular map: radius r ∝ angle from the front (−Z); centre → −Z, rim → +Z (SPEC §2)."""
+
+    name = "angular"
+
+    def uv_to_dir(self, face, u, v):
+        a, b = self._clamped_ab(u, v)
+        r = np.hypot(a, b)
+        s = np.pi * np.sinc(r)  # sin(πr)/r, finite at r = 0
+        return np.stack([a * s, b * s, -np.cos(np.pi * r)], axis=-1)
+
+    def dir_to_uv(self, d):
+        d = np.asarray(d, dtype=np.float64)
+        r = np.arccos(np.clip(-d[..., 2], -1.0, 1.0)) / np.pi
+        rho = np.hypot(d[..., 0], d[..., 1])
+        scale = np.where(rho > 0, r / np.where(rho > 0, rho, 1.0), 0.0)
+        # straight behind (+Z) is the whole rim: take its right-hand point
+        a = np.where(rho > 0, d[..., 0] * scale, r)
+        b = d[..., 1] * scale
+        return np.zeros(d.shape[:-1], dtype=np.int64), (a + 1) / 2, (1 - b) / 2
+
+    def uv_density(self, face, u, v):
+        r = self._disc_radius(u, v)
+        return np.where(r <= 1.0, 4 * np.pi**2 * np.sinc(r), 0.0)
+
+
+class Sphere(_DiscLayout):
+    """Mirror ball / OpenGL sphere map seen by a camera with axes T = [right, up, back] (default: looking along −Z).
+
+    The centre of the image reflects the direction straight back toward the camera (T·+z); the rim is the single
+    direction the camera looks along (T·−z).
+    """
+
+    name = "sphere"
+
+    def __init__(self, camera_axes: np.ndarray | None = None):
+        t = np.eye(3) if camera_axes is None else np.asarray(camera_axes, dtype=np.float64)
+        if t.shape != (3, 3) or not np.allclose(t @ t.T, np.eye(3), atol=1e-9) or np.linalg.det(t) < 0:
+            raise LayoutError("sphere layout: camera_axes must be a rotation matrix [right, up, back]")
+        self.camera_axes = t
+
+    def __eq__(self, other):
+        return isinstance(other, Sphere) and np.array_equal(self.camera_axes, other.camera_axes)
+
+    def __hash__(self):
+        return hash((self.name, self.camera_axes.tobytes()))
+
+    def uv_to_dir(self, face, u, v):
+        x, y = self._clamped_ab(u, v)
+        z = np.sqrt(np.clip(1 - x * x - y * y, 0.0, None))
+        local = np.stack([2 * x * z, 2 * y * z, 2 * z * z - 1], axis=-1)
+        return local @ self.camera_axes.T
+
+    def solid_angles(self, grid):
+        # constant density: the exact area of each pixel inside the disc, times 4 sr per unit of (a, b) area
+        self.check_grid(grid)
+        n = grid[0]
+        e = np.linspace(-1.0, 1.0, n + 1)
+        g = _quarter_disc_area(e[:, None], e[None, :])
+        area = g[1:, 1:] - g[:-1, 1:] - g[1:, :-1] + g[:-1, :-1]
+        interior, rim = _disc_pixel_classes(n)
+        return np.where(interior | rim, 4 * np.maximum(area, 0.0), 0.0)  # exact 0 off the disc
+
+    def dir_to_uv(self, d):
+        local = np.asarray(d, dtype=np.float64) @ self.camera_axes
+        n = local + np.array([0.0, 0.0, 1.0])
+        norm = np.linalg.norm(n, axis=-1)
+        # the direction the camera looks along has no unique normal: any rim point; take the right-hand one
+        x = np.where(norm > 0, n[..., 0] / np.where(norm > 0, norm, 1.0), 1.0)
+        y = np.where(norm > 0, n[..., 1] / np.where(norm > 0, norm, 1.0), 0.0)
+        return np.zeros(local.shape[:-1], dtype=np.int64), (x + 1) / 2, (1 - y) / 2
+
+    def uv_density(self, face, u, v):
+        return np.where(self._disc_radius(u, v) <= 1.0, 16.0, 0.0)
+
+
+# ============================================================================================================ cubes
+# Each cube face is a signed permutation matrix A with  direction ∝ A · (s, t, 1),  s, t ∈ [−1, 1]  (s right, t down).
+# Its third column is the face's axis. Inverse: (s, t) = (Aᵀd)[:2] / (Aᵀd)[2]. Tables from SPEC §2, verbatim.
+def _face(*rows) -> np.ndarray:
+    return np.array(rows, dtype=np.float64)
+
+
+CUBE_FACES = {  # OpenGL / KTX / glTF orientation, order +X, −X, +Y, −Y, +Z, −Z
+    "+X": _face((0, 0, 1), (0, -1, 0), (-1, 0, 0)),  # (1, −t, −s)
+    "-X": _face((0, 0, -1), (0, -1, 0), (1, 0, 0)),  # (−1, −t, s)
+    "+Y": _face((1, 0, 0), (0, 0, 1), (0, 1, 0)),  # (s, 1, t)
+    "-Y": _face((1, 0, 0), (0, 0, -1), (0, -1, 0)),  # (s, −1, −t)
+    "+Z": _face((1, 0, 0), (0, -1, 0), (0, 0, 1)),  # (s, −t, 1)
+    "-Z": _face((-1, 0, 0), (0, -1, 0), (0, 0, -1)),  # (−s, −t, −1)
+}
+CUBE_FACE_ORDER = ("+X", "-X", "+Y", "-Y", "+Z", "-Z")
+
+VCROSS_TILES = {  # Debevec vertical cross, (tile row, tile col) → matrix; a right, b down inside the tile
+    (1, 1): _face((1, 0, 0), (0, -1, 0), (0, 0, -1)),  # front −Z: (a, −b, −1)
+    (0, 1): _face((1, 0, 0), (0, 0, 1), (0, -1, 0)),  # +Y: (a, 1, −b)
+    (1, 0): _face((0, 0, -1), (0, -1, 0), (-1, 0, 0)),  # −X: (−1, −b, −a)
+    (1, 2): _face((0, 0, 1), (0, -1, 0), (1, 0, 0)),  # +X: (1, −b, a)
+    (2, 1): _face((1, 0, 0), (0, 0, -1), (0, 1, 0)),  # −Y: (a, −1, b)
+    (3, 1): _face((1, 0, 0), (0, 1, 0), (0, 0, 1)),  # back +Z, upside down: (a, b, 1)
+}
+HCROSS_TILES = {  # horizontal cross: the middle row runs −X, front, +X, back, all upright
+    (1, 1): VCROSS_TILES[(1, 1)],
+    (0, 1): VCROSS_TILES[(0, 1)],
+    (1, 0): VCROSS_TILES[(1, 0)],
+    (1, 2): VCROSS_TILES[(1, 2)],
+    (2, 1): VCROSS_TILES[(2, 1)],
+    (1, 3): _face((-1, 0, 0), (0, -1, 0), (0, 0, 1)),  # back +Z: (−a, −b, 1)
+}
+
+
+def _faces_dir_to_st(mats: np.ndarray, d: np.ndarray):
+    """Pick, for each direction, the face whose axis it is closest to; return (face index, s, t)."""
+    d = np.asarray(d, dtype=np.float64)
+    axes = mats[:, :, 2]  # (F, 3): each face's outward axis
+    face = np.argmax(d @ axes.T, axis=-1)
+    local = np.einsum("...ji,...j->...i", mats[face], d)  # Aᵀ d per direction
+    return face, local[..., 0] / local[..., 2], local[..., 1] / local[..., 2]
+
+
+def _faces_st_to_dir(mats: np.ndarray, face, s, t) -> np.ndarray:
+    st1 = np.stack(np.broadcast_arrays(s, t, np.ones_like(s, dtype=np.float64)), axis=-1)
+    d = np.einsum("...ij,...j->...i", mats[np.asarray(face)], st1)
+    return d / np.linalg.norm(d, axis=-1, keepdims=True)
+
+
+def _cube_texel_solid_angles(n: int) -> np.ndarray:
+    """Exact solid angle of the texels of one N×N cube face: signed sum of atan2(xy, √(x²+y²+1)) at the corners."""
+    e = np.linspace(-1.0, 1.0, n + 1)
+    x, y = np.meshgrid(e, e, indexing="xy")
+    f = np.arctan2(x * y, np.sqrt(x * x + y * y + 1))
+    return f[1:, 1:] - f[:-1, 1:] - f[1:, :-1] + f[:-1, :-1]
+
+
+def _st_density(s, t):
+    """dω / (ds dt) on a cube face."""
+    return (1 + s * s + t * t) ** -1.5
+
+
+class Cube(Layout):
+    """Six N×N faces in the order +X, −X, +Y, −Y, +Z, −Z with OpenGL orientation; grid (6, N, N).
+
+    As an image file a cube is a horizontal strip 6N × N of the faces in that order.
+    """
+
+    name = "cube"
+    faces = 6
+    aspect = (1, 1)
+    _mats = np.stack([CUBE_FACES[k] for k in CUBE_FACE_ORDER])
+
+    def grid_shape(self, size):
+        if size < 1:
+            raise LayoutError(f"cube: size must be at least 1, got {size}")
+        return (6, size, size)
+
+    def size_of(self, grid):
+        return grid[-1]
+
+    def check_grid(self, grid):
+        if len(grid) != 3 or grid[0] != 6 or grid[1] != grid[2] or grid[1] < 1:
+            raise LayoutError(f"cube needs six square faces (6, N, N), got grid {grid}")
+
+    def uv_to_dir(self, face, u, v):
+        return _faces_st_to_dir(self._mats, face, 2 * np.asarray(u) - 1, 2 * np.asarray(v) - 1)
+
+    def dir_to_uv(self, d):
+        face, s, t = _faces_dir_to_st(self._mats, d)
+        return face, (s + 1) / 2, (t + 1) / 2
+
+    def uv_density(self, face, u, v):
+        return 4 * _st_density(2 * np.asarray(u) - 1, 2 * np.asarray(v) - 1) + 0 * np.asarray(face)
+
+    def solid_angles(self, grid):
+        self.check_grid(grid)
+        return np.broadcast_to(_cube_texel_solid_angles(grid[-1]), grid).copy()
+
+    def valid_mask(self, grid):
+        return np.ones(grid, dtype=bool)
+
+
+class Cross(Layout):
+    """A cube unfolded into one image of tiles (N×N each); tiles not in the table are invalid (black)."""
+
+    def __init__(self, name: str, tiles: dict, aspect: tuple[int, int]):
+        self.name, self.aspect = name, aspect
+        self._tiles = list(tiles)  # (row, col) per face index of this layout
+        self._mats = np.stack([tiles[k] for k in self._tiles])
+        self.valid_fraction = 6 / (aspect[0] * aspect[1])
+
+    def _tile_of(self, u, v):
+        cols, rows = self.aspect
+        tc, tr = np.floor(np.asarray(u) * cols), np.floor(np.asarray(v) * rows)
+        tile = np.full(np.shape(tc), -1, dtype=np.int64)
+        for k, (r, c) in enumerate(self._tiles):
+            tile[(tr == r) & (tc == c)] = k
+        a = 2 * (np.asarray(u) * cols - tc) - 1
+        b = 2 * (np.asarray(v) * rows - tr) - 1
+        return tile, a, b
+
+    def uv_to_dir(self, face, u, v):
+        tile, a, b = self._tile_of(u, v)
+        d = _faces_st_to_dir(self._mats, np.maximum(tile, 0), a, b)
+        return np.where((tile >= 0)[..., None], d, np.nan)
+
+    def dir_to_uv(self, d):
+        k, a, b = _faces_dir_to_st(self._mats, d)
+        # keep face edges inside their tile: an outer edge must not round onto the empty neighbouring tile
+        a, b = np.clip(a, -1 + 1e-12, 1 - 1e-12), np.clip(b, -1 + 1e-12, 1 - 1e-12)
+        tiles = np.array(self._tiles)
+        cols, rows = self.aspect
+        u = (tiles[k, 1] + (a + 1) / 2) / cols
+        v = (tiles[k, 0] + (b + 1) / 2) / rows
+        return np.zeros(np.shape(k), dtype=np.int64), u, v
+
+    def uv_density(self, face, u, v):
+        tile, a, b = self._tile_of(u, v)
+        cols, rows = self.aspect
+        return np.where(tile >= 0, 4 * cols * rows * _st_density(a, b), 0.0)
+
+    def solid_angles(self, grid):
+        self.check_grid(grid)
+        n = grid[0] // self.aspect[1]
+        omega = np.zeros(grid)
+        texels = _cube_texel_solid_angles(n)  # symmetric under the flips and swaps that orient the tiles
+        for r, c in self._tiles:
+            omega[r * n : (r + 1) * n, c * n : (c + 1) * n] = texels
+        return omega
+
+    def to_cube(self, data: np.ndarray) -> np.ndarray:
+        """Rearrange a cross image into cube faces (6, N, N, C). Exact: both hold the same texel centres."""
+        n = data.shape[0] // self.aspect[1]
+        rows, cols = _cross_to_cube_index(self, n)
+        return data[rows, cols]
+
+    def from_cube(self, faces: np.ndarray) -> np.ndarray:
+        """Inverse of :meth:`to_cube`; tiles outside the cross are 0."""
+        n = faces.shape[1]
+        rows, cols = _cross_to_cube_index(self, n)
+        out = np.zeros((n * self.aspect[1], n * self.aspect[0]) + faces.shape[3:], dtype=faces.dtype)
+        out[rows, cols] = faces
+        return out
+
+    def sampler(self, data, kernel="bilinear"):
+        # looked up through its cube faces: the rearrangement is exact and the cube's padding is seamless
+        return CUBE.sampler(self.to_cube(data), kernel)
+
+
+@lru_cache(maxsize=16)
+def _cross_to_cube_index(layout: Cross, n: int):
+    """For every cube texel (6, N, N), the cross pixel (row, col) that holds the same direction."""
+    grid = CUBE.grid_shape(n)
+    d = CUBE.uv_to_dir(*CUBE.pixel_centres(grid))
+    _, x, y = layout.pixel_coords(d, layout.grid_shape(n))
+    return np.rint(y).astype(np.int64), np.rint(x).astype(np.int64)
+
+
+LATLONG = LatLong()
+ANGULAR = Angular()
+SPHERE = Sphere()
+CUBE = Cube()
+CROSS = Cross("cross", VCROSS_TILES, (3, 4))
+HCROSS = Cross("hcross", HCROSS_TILES, (4, 3))
+
+LAYOUTS: dict[str, Layout] = {lay.name: lay for lay in (LATLONG, ANGULAR, SPHERE, CUBE, CROSS, HCROSS)}
+
+
+def layout(name: str | Layout) -> Layout:
+    """Look a layout up by name; a :class:`Layout` passes through."""
+    if isinstance(name, Layout):
+        return name
+    try:
+        return LAYOUTS[name]
+    except KeyError:
+        raise LayoutError(f"unknown layout {name!r}; known layouts: {', '.join(LAYOUTS)}") from None
+
+
+def detect_layout(width: int, height: int) -> Layout:
+    """Guess a flat image's layout from its aspect ratio: 2:1 latlong, 1:1 angular, 3:4 cross, 4:3 hcross,
+    6:1 cube strip. A mirror ball (also 1:1) must be stated explicitly."""
+    ratios = {(2, 1): LATLONG, (1, 1): ANGULAR, (3, 4): CROSS, (4, 3): HCROSS, (6, 1): CUBE}
+    for (aw, ah), lay in ratios.items():
+        if width * ah == height * aw:
+            return lay
+    raise LayoutError(
+        f"cannot tell the layout of a {width}×{height} image from its aspect ratio "
+        "(2:1 latlong, 1:1 angular, 3:4 cross, 4:3 hcross, 6:1 cube); state it with --layout"
+    )

@@ -1,0 +1,62 @@
+"""Display transforms: linear radiance → display-referred values in [0, 1].
+
+``exposure`` is in stops (the image is multiplied by 2**exposure first). Curves:
+
+* ``srgb``: clip to [0, 1], then the sRGB transfer function (IEC 61966-2-1).
+* ``aces``: Narkowicz's fit of the ACES filmic RRT+ODT (x(2.51x+0.03)/(x(2.43x+0.59)+0.14)), then sRGB.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+CURVES = ("srgb", "aces")
+
+
+def srgb_encode(linear: np.ndarray) -> np.ndarray:
+    """Linear [0, 1] → sRGB-encoded [0, 1] (values outside [0, 1] are clipped first)."""
+    x = np.clip(linear, 0.0, 1.0)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+
+
+def srgb_decode(encoded: np.ndarray) -> np.ndarray:
+    """sRGB-encoded [0, 1] → linear [0, 1]."""
+    x = np.asarray(encoded, dtype=np.float32)
+    return np.where(x <= 0.04045, x / 12.92, np.power((x + 0.055) / 1.055, 2.4)).astype(np.float32)
+
+
+def aces_filmic(linear: np.ndarray) -> np.ndarray:
+    """Narkowicz 2015 ACES filmic approximation, linear → linear display [0, 1]."""
+    x = np.maximum(linear, 0.0)
+    return np.clip(x * (2.51 * x + 0.03) / (x * (2.43 * x + 0.59) + 0.14), 0.0, 1.0)
+
+
+def tonemap(radiance: np.ndarray, exposure: float = 0.0, curve: str = "srgb") -> np.ndarray:
+    """Linear radiance → display-encoded float values in [0, 1] (NaN and negative values show as black)."""
+    if curve not in CURVES:
+        raise ValueError(f"unknown tone curve {curve!r}; choose one of {', '.join(CURVES)}")
+    x = np.nan_to_num(np.asarray(radiance, dtype=np.float32), nan=0.0, posinf=0.0, neginf=0.0) * 2.0**exposure
+    if curve == "aces":
+        x = aces_filmic(x)
+    return srgb_encode(x).astype(np.float32)
+
+
+def to_uint8(display: np.ndarray) -> np.ndarray:
+    """Display values in [0, 1] → 8-bit, rounded."""
+    return np.clip(np.rint(np.asarray(display) * 255.0), 0, 255).astype(np.uint8)
+
+
+def auto_exposure(radiance: np.ndarray, weights: np.ndarray | None = None, key: float = 0.18) -> float:
+    """Exposure (stops) that maps the weighted geometric mean luminance to ``key`` (Reinhard's key value)."""
+    lum = luminance(np.asarray(radiance, dtype=np.float64))
+    w = np.ones(lum.shape) if weights is None else np.asarray(weights, dtype=np.float64)
+    good = np.isfinite(lum) & (w > 0)
+    if not good.any():
+        return 0.0
+    log_mean = np.sum(w[good] * np.log(np.maximum(lum[good], 1e-6))) / np.sum(w[good])
+    return float(np.log2(key) - log_mean / np.log(2))
+
+
+def luminance(rgb: np.ndarray) -> np.ndarray:
+    """Rec. 709 luminance 0.2126 R + 0.7152 G + 0.0722 B of linear RGB (..., 3)."""
+    return np.asarray(rgb)[..., :3] @ np.array([0.2126, 0.7152, 0.0722], dtype=np.asarray(rgb).dtype)

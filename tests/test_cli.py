@@ -1,0 +1,134 @@
+"""The command line: results, and bad input → one line on stderr, exit 2, no traceback, no partial output."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import shared
+from lightprobe.cli import main
+from lightprobe.envmap import read_envmap
+from lightprobe.io import write_image
+
+
+def run(capsys, *argv):
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def assert_clean_failure(code, err, *words):
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("lightprobe: error: "), err
+    assert "Traceback" not in err
+    for w in words:
+        assert w in err, err
+
+
+def test_info_json_on_the_shipped_probe(capsys):
+    code, out, _ = run(capsys, "info", "--json")
+    s = json.loads(out)
+    assert code == 0 and s["layout"] == "latlong" and (s["width"], s["height"]) == (512, 256)
+    assert s["nan_pixels"] == 0 and len(s["integral"]) == 3 and s["integral"][1] > 0
+
+
+def test_info_reports_bad_pixels_without_repairing(tmp_path, capsys):
+    px = np.ones((8, 16, 3), np.float32)
+    px[0, 0, 0], px[1, 1, 1], px[2, 2, 2], px[3, 3, 0] = np.nan, np.inf, -1, -2
+    write_image(tmp_path / "bad.exr", px)
+    code, out, err = run(capsys, "info", tmp_path / "bad.exr", "--json")
+    s = json.loads(out)
+    assert code == 0 and (s["nan_pixels"], s["inf_pixels"], s["negative_pixels"]) == (1, 1, 2)
+
+
+def test_convert_writes_the_layout_and_size(tmp_path, capsys):
+    out = tmp_path / "c.exr"
+    code, text, _ = run(capsys, "convert", shared("debevec/cross/grace_cross.hdr"), out, "--to", "cube", "--size", 32)
+    assert code == 0 and out.exists()
+    env = read_envmap(out)
+    assert env.layout.name == "cube" and env.grid == (6, 32, 32)
+
+
+def test_convert_rotate_moves_the_sun(tmp_path, capsys):
+    src = read_envmap(shared("polyhaven_1k/rooitou_park_1k.hdr"))
+    run(capsys, "convert", shared("polyhaven_1k/rooitou_park_1k.hdr"), tmp_path / "r.exr", "--to", "latlong",
+        "--size", 128, "--rotate", "90,0,0")
+    turned = read_envmap(tmp_path / "r.exr")
+
+    def sun(env):
+        i = np.unravel_index(np.argmax(env.data[..., 1]), env.grid)
+        return env.directions()[i]
+
+    from lightprobe.frames import rotation_from_ypr
+
+    assert np.dot(sun(turned), rotation_from_ypr(90, 0, 0) @ sun(src)) > np.cos(np.radians(2))
+
+
+@pytest.mark.parametrize("argv,words", [
+    (["info", "missing.hdr"], ["no such file"]),
+    (["convert", "missing.hdr", "x.exr", "--to", "cube"], ["no such file"]),
+    (["convert", "{cross}", "x.exr", "--to", "nope"], ["invalid choice"]),
+    (["convert", "{cross}", "x.txt", "--to", "cube"], ["unknown image format"]),
+    (["convert", "{cross}", "x.exr", "--to", "cube", "--rotate", "1,2"], ["yaw,pitch,roll"]),
+    (["convert", "{cross}", "x.exr", "--to", "cube", "--size", "0"], ["--size"]),
+    (["convert", "{cross}", "x.exr", "--to", "cube", "--size", "1000000"], ["limit"]),
+    (["info", "{cross}", "--layout", "latlong"], ["does not fit the latlong layout"]),
+    (["info", "{corrupt}"], ["cannot read"]),
+    (["info", "{truncated}"], ["cannot read"]),
+    (["info", "{odd}"], ["aspect ratio", "--layout"]),
+    (["frobnicate"], ["invalid choice"]),
+])
+def test_bad_input_is_one_clean_line(tmp_path, capsys, monkeypatch, argv, words):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "corrupt.hdr").write_bytes(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 4 +X 8\n\xff\xff")
+    blob = shared("ict_lowres/grace.hdr").read_bytes()
+    (tmp_path / "truncated.hdr").write_bytes(blob[: len(blob) // 2])
+    write_image(tmp_path / "odd.exr", np.ones((10, 13, 3), np.float32))
+    names = {"cross": shared("debevec/cross/grace_cross.hdr"), "corrupt": tmp_path / "corrupt.hdr",
+             "truncated": tmp_path / "truncated.hdr", "odd": tmp_path / "odd.exr"}
+    code, _, err = run(capsys, *[a.format(**names) for a in argv])
+    assert_clean_failure(code, err, *words)
+    assert not (tmp_path / "x.exr").exists()
+    assert not [p for p in tmp_path.iterdir() if ".tmp" in p.name]  # no temporary file left behind
+
+
+def test_nan_pixels_are_replaced_with_a_one_line_warning(tmp_path, capsys):
+    px = np.ones((8, 16, 3), np.float32)
+    px[0, :4] = np.nan
+    write_image(tmp_path / "nan.exr", px)
+    code, _, err = run(capsys, "convert", tmp_path / "nan.exr", tmp_path / "o.exr", "--to", "latlong")
+    assert code == 0
+    assert err.strip().splitlines() == [
+        f"lightprobe: warning: {tmp_path / 'nan.exr'}: replaced by 0 the bad values of 4 NaN, 0 infinite and 0 "
+        "negative pixels"]
+    assert np.isfinite(read_envmap(tmp_path / "o.exr").data).all()
+
+
+def test_help_everywhere(capsys):
+    for argv in (["--help"], ["info", "--help"], ["convert", "--help"], ["demo", "--help"]):
+        code, out, _ = run(capsys, *argv)
+        assert code == 0 and "usage:" in out
+
+
+def test_the_installed_command_fails_cleanly(tmp_path):
+    """The real entry point, in a fresh process: exit status 2, one line, no traceback."""
+    exe = Path(sys.executable).with_name("lightprobe")
+    res = subprocess.run([str(exe), "info", str(tmp_path / "nope.exr")], capture_output=True, text=True,
+                         env={**os.environ, "LIGHTPROBE_PROGRESS": "0"})
+    assert res.returncode == 2 and res.stderr.count("\n") == 1 and "Traceback" not in res.stderr
+
+
+def test_demo_writes_a_report_with_pictures(tmp_path, capsys):
+    code, out, _ = run(capsys, "demo", "--out", tmp_path / "report")
+    assert code == 0
+    index = (tmp_path / "report" / "index.html").read_text()
+    for name in ("latlong", "angular", "sphere", "cube", "cross", "hcross"):
+        assert f"layout_{name}.png" in index and (tmp_path / "report" / f"layout_{name}.png").stat().st_size > 1000
+    assert "∫L dω" in index

@@ -1,0 +1,148 @@
+"""Layouts: forward/inverse pairs, exact solid angles, the SPEC's anchor directions, tables that agree."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from conftest import SPECIAL_DIRECTIONS, random_directions
+from lightprobe.errors import LayoutError
+from lightprobe.layouts import ANGULAR, CROSS, CUBE, HCROSS, LATLONG, LAYOUTS, SPHERE, Sphere, detect_layout
+from lightprobe.frames import rotation_from_ypr
+
+ALL = list(LAYOUTS.values())
+IDS = list(LAYOUTS)
+
+
+@pytest.mark.parametrize("lay", ALL, ids=IDS)
+def test_direction_pixel_direction_round_trip(lay):
+    d = np.concatenate([random_directions(20000), SPECIAL_DIRECTIONS])
+    face, u, v = lay.dir_to_uv(d)
+    assert np.all((u >= 0) & (u <= 1) & (v >= 0) & (v <= 1))
+    back = lay.uv_to_dir(face, u, v)
+    # the disc layouts' rim is one direction reached from a whole circle: atan2 there is ill-conditioned
+    tol = 1e-6 if lay in (ANGULAR, SPHERE) else 1e-8  # latlong: arccos at the poles
+    np.testing.assert_allclose(back, d, atol=tol)
+
+
+@given(st.floats(-1, 1), st.floats(-1, 1), st.floats(-1, 1))
+@settings(max_examples=300, deadline=None)
+def test_round_trip_any_direction(x, y, z):
+    d = np.array([x, y, z])
+    if np.linalg.norm(d) < 1e-6:
+        return
+    d /= np.linalg.norm(d)
+    for lay in ALL:
+        back = lay.uv_to_dir(*lay.dir_to_uv(d))
+        assert np.allclose(back, d, atol=1e-6), lay.name
+
+
+@pytest.mark.parametrize("lay", ALL, ids=IDS)
+@pytest.mark.parametrize("size", [8, 33, 64])
+def test_pixel_direction_pixel_round_trip(lay, size):
+    grid = lay.grid_shape(size)
+    face, u, v = lay.pixel_centres(grid)
+    mask = lay.valid_mask(grid)
+    if lay in (ANGULAR, SPHERE):  # pixels the rim cuts through with their centre outside map to the rim
+        mask &= np.hypot(2 * u - 1, 1 - 2 * v) < 1
+    f2, u2, v2 = lay.dir_to_uv(lay.directions(grid)[mask])
+    np.testing.assert_array_equal(f2, face[mask])
+    np.testing.assert_allclose(u2, u[mask], atol=1e-9)
+    np.testing.assert_allclose(v2, v[mask], atol=1e-9)
+
+
+@pytest.mark.parametrize("lay", ALL, ids=IDS)
+@pytest.mark.parametrize("size", [16, 64, 256])
+def test_solid_angles_sum_to_4pi(lay, size):
+    omega = lay.solid_angles(lay.grid_shape(size))
+    assert omega.min() >= 0
+    assert abs(omega.sum() - 4 * np.pi) < 1e-4
+
+
+@pytest.mark.parametrize("lay", ALL, ids=IDS)
+def test_solid_angles_match_the_density(lay):
+    """Each pixel's solid angle equals ∫ dω/(du dv) over the pixel, integrated independently (fine midpoint rule)."""
+    grid = lay.grid_shape(12)
+    h, w = grid[-2:]
+    m = 40
+    sub = (np.arange(m) + 0.5) / m
+    face, row, col = np.indices(grid) if lay.faces > 1 else (np.zeros(grid, int), *np.indices(grid))
+    u = (col[..., None, None] + sub[None, :]) / w
+    v = (row[..., None, None] + sub[:, None]) / h
+    f = np.broadcast_to(face[..., None, None], u.shape + ())
+    u, v = np.broadcast_arrays(u, v)
+    f = np.broadcast_to(face[..., None, None], u.shape)
+    numeric = lay.uv_density(f, u, v).mean(axis=(-2, -1)) / (h * w)
+    np.testing.assert_allclose(lay.solid_angles(grid), numeric, atol=2e-3 * numeric.max())
+
+
+def test_spec_anchor_directions():
+    """The directions SPEC §2 names, exactly."""
+    assert np.allclose(LATLONG.uv_to_dir(0, 0.5, 0.5), [0, 0, -1])  # centre column → −Z (front)
+    assert np.allclose(LATLONG.uv_to_dir(0, 0.75, 0.5), [1, 0, 0])  # u = ¾ → +X
+    assert np.allclose(LATLONG.uv_to_dir(0, 0.3, 0.0), [0, 1, 0])  # top row → +Y
+    assert np.allclose(ANGULAR.uv_to_dir(0, 0.5, 0.5), [0, 0, -1])  # centre → front
+    assert np.allclose(ANGULAR.uv_to_dir(0, 1.0, 0.5), [0, 0, 1])  # rim → back
+    assert np.allclose(ANGULAR.uv_to_dir(0, 0.75, 0.5), [1, 0, 0])  # half way right → +X
+    assert np.allclose(ANGULAR.uv_to_dir(0, 0.5, 0.25), [0, 1, 0])  # half way up → +Y
+    assert np.allclose(SPHERE.uv_to_dir(0, 0.5, 0.5), [0, 0, 1])  # mirror ball reflects back toward the camera
+    assert np.allclose(SPHERE.uv_to_dir(0, 0.5 + 0.5 * np.sqrt(0.5), 0.5), [1, 0, 0])
+    for i, axis in enumerate(np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]])):
+        assert np.allclose(CUBE.uv_to_dir(i, 0.5, 0.5), axis)
+    # cube +Z face: s right → +X, t down → −Y; −Z face: s right → −X
+    assert np.allclose(CUBE.uv_to_dir(4, 1.0, 0.5), np.array([1, 0, 1]) / np.sqrt(2))
+    assert np.allclose(CUBE.uv_to_dir(4, 0.5, 1.0), np.array([0, -1, 1]) / np.sqrt(2))
+    assert np.allclose(CUBE.uv_to_dir(5, 1.0, 0.5), np.array([-1, 0, -1]) / np.sqrt(2))
+    # vertical cross: front tile centre → −Z, top tile → +Y, bottom tile (back, upside down) top edge → −Y side
+    assert np.allclose(CROSS.uv_to_dir(0, 0.5, 3 / 8), [0, 0, -1])
+    assert np.allclose(CROSS.uv_to_dir(0, 0.5, 1 / 8), [0, 1, 0])
+    assert np.allclose(CROSS.uv_to_dir(0, 0.5, 7 / 8), [0, 0, 1])
+    assert np.allclose(CROSS.uv_to_dir(0, 0.5, 0.75 + 1e-9), np.array([0, -1, 1]) / np.sqrt(2), atol=1e-6)
+    assert np.allclose(HCROSS.uv_to_dir(0, 7 / 8, 0.5), [0, 0, 1])
+
+
+@pytest.mark.parametrize("cross", [CROSS, HCROSS], ids=["cross", "hcross"])
+@pytest.mark.parametrize("n", [1, 4, 31])
+def test_cross_and_cube_hold_the_same_texels(cross, n):
+    """The cross's tile table and the cube's face table (two SPEC tables) describe the same texel centres."""
+    faces = np.random.default_rng(n).random((6, n, n, 3)).astype(np.float32)
+    image = cross.from_cube(faces)
+    np.testing.assert_array_equal(cross.to_cube(image), faces)
+    assert (image.sum(axis=-1) > 0).sum() == 6 * n * n  # a bijection onto the six tiles
+    grid = cross.grid_shape(n)
+    d_cross = cross.directions(grid)[cross.valid_mask(grid)]
+    d_cube = CUBE.directions(CUBE.grid_shape(n)).reshape(-1, 3)
+    # same set of directions, up to order
+    key = lambda d: np.lexsort(np.round(d, 9).T)  # noqa: E731
+    np.testing.assert_allclose(d_cross[key(d_cross)], d_cube[key(d_cube)], atol=1e-12)
+
+
+def test_sphere_layout_with_camera_axes():
+    t = rotation_from_ypr(90, 0, 0)  # camera turned to look along −X
+    lay = Sphere(t)
+    assert np.allclose(lay.uv_to_dir(0, 0.5, 0.5), t[:, 2])  # centre reflects back toward the camera
+    d = random_directions(1000)
+    assert np.allclose(lay.uv_to_dir(*lay.dir_to_uv(d)), d, atol=1e-6)
+    with pytest.raises(LayoutError):
+        Sphere(np.diag([1.0, 1.0, -1.0]))
+
+
+@pytest.mark.parametrize("w,h,name", [(2048, 1024, "latlong"), (1000, 1000, "angular"), (768, 1024, "cross"),
+                                      (1024, 768, "hcross"), (3072, 512, "cube")])
+def test_detect_layout(w, h, name):
+    assert detect_layout(w, h).name == name
+
+
+@pytest.mark.parametrize("w,h", [(1000, 999), (300, 200), (7, 1)])
+def test_undetectable_aspect_is_a_clear_error(w, h):
+    with pytest.raises(LayoutError, match="--layout"):
+        detect_layout(w, h)
+
+
+@pytest.mark.parametrize("lay,grid", [(LATLONG, (100, 100)), (ANGULAR, (100, 90)), (CROSS, (100, 76)),
+                                      (CUBE, (5, 8, 8)), (HCROSS, (3, 5))])
+def test_grid_that_does_not_fit_is_refused(lay, grid):
+    with pytest.raises(LayoutError):
+        lay.check_grid(grid)

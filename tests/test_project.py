@@ -1,0 +1,46 @@
+"""The project's own rules: the README's two commands, CI running exactly the test one, imports flowing one way."""
+
+from __future__ import annotations
+
+import ast
+import re
+
+from conftest import ROOT
+
+# Each module's floor; a module may import only from its own floor or below.
+FLOORS = {
+    "errors": 0, "progress": 0, "kernels": 0, "tonemap": 0, "frames": 0, "io": 1, "layouts": 1, "data": 0,
+    "envmap": 2,
+    "demo": 9, "cli": 10, "__init__": 10,
+}
+
+
+def readme_commands() -> list[str]:
+    text = (ROOT / "README.md").read_text()
+    block = re.match(r"```sh\n(.*?)```", text, re.S)
+    assert block, "the README must open with a sh code block"
+    return [line for line in block.group(1).splitlines() if line.strip()]
+
+
+def test_readme_opens_with_exactly_two_commands():
+    demo, tests = readme_commands()
+    assert "lightprobe demo" in demo and ".venv" in demo
+    assert "pytest" in tests and ".venv" in tests
+
+
+def test_ci_runs_the_readme_test_command_and_nothing_else():
+    ci = [line for line in (ROOT / ".ci" / "run").read_text().splitlines()
+          if line.strip() and not line.startswith("#") and not line.startswith(("set ", "cd "))]
+    assert ci == [readme_commands()[1]]
+
+
+def test_imports_flow_one_way():
+    package = ROOT / "src" / "lightprobe"
+    for path in package.rglob("*.py"):
+        name = path.stem if path.parent == package else path.parent.name
+        assert name in FLOORS, f"{path.relative_to(ROOT)}: give the module a floor in tests/test_project.py"
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.level >= 1 and node.module:
+                target = node.module.split(".")[0]
+                if target in FLOORS:
+                    assert FLOORS[target] <= FLOORS[name], f"{name} imports {target}, which is above it"
