@@ -51,7 +51,17 @@ RH2001 = Frame(
     "Ramamoorthi & Hanrahan's prefilter frame: angular-probe centre +z, image right +x, up +y; (x, y, -z) of world",
 )
 
-FRAMES: dict[str, Frame] = {f.name: f for f in (WORLD, RH2001)}
+# Engine frames. three.js, Filament and glTF are right-handed with +Y up and the default camera looking along −Z:
+# the world frame itself. Unity and Babylon.js (by default) are left-handed with +Y up and the camera looking along
+# +Z: the world frame with z negated, so the front of a panorama stays in front of the default camera.
+THREEJS = Frame("threejs", np.eye(3), "three.js world: right-handed, +Y up, camera looks along −Z (= world)")
+FILAMENT = Frame("filament", np.eye(3), "Filament world: right-handed, +Y up, camera looks along −Z (= world)")
+GLTF = Frame("gltf", np.eye(3), "glTF: right-handed, +Y up, default camera looks along −Z (= world)")
+UNITY = Frame("unity", np.diag([1.0, 1.0, -1.0]), "Unity: left-handed, +Y up, +Z forward; (x, y, −z) of world")
+BABYLON = Frame("babylon", np.diag([1.0, 1.0, -1.0]),
+                "Babylon.js default: left-handed, +Y up, +Z forward; (x, y, −z) of world")
+
+FRAMES: dict[str, Frame] = {f.name: f for f in (WORLD, RH2001, THREEJS, FILAMENT, GLTF, UNITY, BABYLON)}
 
 
 def frame(name: str | Frame) -> Frame:

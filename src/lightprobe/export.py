@@ -1,0 +1,261 @@
+"""SH irradiance for engines: every target's frame, sign convention, order and scaling, converted explicitly.
+
+Input is always :class:`~lightprobe.sh.SHCoeffs` of **radiance** (L_lm, the paper's basis without Condon–Shortley
+phase, l_max ≥ 2). Each exporter states, at its function, what its numbers are. Notation used below:
+
+* ``K_i``: the positive constant of basis function i as a polynomial: 0.282095; 0.488603 (y, z, x);
+  1.092548 (xy, yz, xz); 0.315392 (3z²−1); 0.546274 (x²−y²).
+* Condon–Shortley (CS) phase: engines built on Sloan's "Stupid SH tricks" basis (Filament, Babylon) define
+  Y1−1, Y11, Y2−1, Y21 with a minus sign; their coefficients for those four are the negatives of ours.
+* ``E`` is irradiance, ``E/π`` the outgoing radiance of a white Lambertian surface.
+
+The scaling steps are one small named function each (as in Babylon's sphericalPolynomial.ts), so a conversion is
+never applied twice by accident.
+"""
+
+from __future__ import annotations
+
+import json
+from math import pi
+
+import numpy as np
+
+from .irradiance import C1, C2, C3, C4, C5
+from .frames import BABYLON, FILAMENT, GLTF, THREEJS, UNITY, WORLD, Frame, frame as frame_named
+from .sh import SHCoeffs, a_hat_per_coefficient, n_coeffs, name
+
+TARGETS = ("json", "threejs", "filament", "unity", "gltf", "babylon", "glsl")
+DEFAULT_FRAMES = {"json": WORLD, "threejs": THREEJS, "filament": FILAMENT, "unity": UNITY, "gltf": GLTF,
+                  "babylon": BABYLON, "glsl": WORLD}
+GLTF_SCALINGS = ("babylon", "irradiance")
+
+BASIS_CONSTANTS = np.array([0.5 * np.sqrt(1 / pi)] + [0.5 * np.sqrt(3 / pi)] * 3
+                           + [0.5 * np.sqrt(15 / pi)] * 2 + [0.25 * np.sqrt(5 / pi)] + [0.5 * np.sqrt(15 / pi)]
+                           + [0.25 * np.sqrt(15 / pi)])  # K_i, i = 0..8
+CS_SIGNS = np.array([1, -1, 1, -1, 1, -1, 1, -1, 1], dtype=np.float64)  # (−1)^m for l ≤ 2
+
+
+# ---- scaling steps (each one named, each applied once) ---------------------------------------------------------------
+def _nine(sh: SHCoeffs, target_frame: Frame) -> np.ndarray:
+    """Radiance L_lm, bands ≤ 2, stated in ``target_frame``: (9, 3)."""
+    if sh.quantity != "radiance":
+        raise ValueError(f"exports start from radiance coefficients, got {sh.quantity}")
+    if sh.l_max < 2:
+        raise ValueError("engine exports need coefficients up to band 2")
+    return sh.truncated(2).to_frame(target_frame).coeffs.copy()
+
+
+def radiance_to_irradiance(c: np.ndarray) -> np.ndarray:
+    """L_lm → E_lm = Â_l L_lm (cosine convolution, paper eq. 7)."""
+    return c * a_hat_per_coefficient(2)[:, None]
+
+
+def irradiance_to_lambertian(c: np.ndarray) -> np.ndarray:
+    """E → E/π (outgoing radiance of a white Lambertian surface)."""
+    return c / pi
+
+
+def premultiply_basis_constants(c: np.ndarray) -> np.ndarray:
+    """c_i → c_i K_i: the shader then evaluates bare polynomials (1, y, z, x, xy, yz, 3z²−1, xz, x²−y²)."""
+    return c * BASIS_CONSTANTS[:, None]
+
+
+def to_condon_shortley(c: np.ndarray) -> np.ndarray:
+    """Our basis → a CS-phase basis: negate the m = ±1 coefficients (L1−1, L11, L2−1, L21)."""
+    return c * CS_SIGNS[:, None]
+
+
+def times_pi(c: np.ndarray) -> np.ndarray:
+    return c * pi
+
+
+# ---- targets --------------------------------------------------------------------------------------------------------
+def export_json(sh: SHCoeffs, frame: Frame = WORLD) -> str:
+    """lightprobe's own format: radiance L_lm in the paper's basis (no CS phase), any order, flat order, ``frame``."""
+    out = sh.to_frame(frame)
+    return json.dumps({
+        "format": "lightprobe.sh/1",
+        "quantity": out.quantity,
+        "frame": out.frame.name,
+        "frame_description": out.frame.description,
+        "basis": "real SH, no Condon-Shortley phase, flat index l(l+1)+m (Ramamoorthi & Hanrahan 2001)",
+        "window": out.window,
+        "l_max": out.l_max,
+        "names": [name(i) for i in range(n_coeffs(out.l_max))],
+        "coefficients": out.as_list(),
+    }, indent=1)
+
+
+def threejs_coefficients(sh: SHCoeffs, frame: Frame = THREEJS) -> np.ndarray:
+    """three.js ``SphericalHarmonics3``: radiance L_lm (no CS phase; its getAt/getIrradianceAt use +0.488603 y etc.),
+    order L00, L1−1, L10, L11, L2−2, L2−1, L20, L21, L22, three.js world frame (= world). ``getIrradianceAt``
+    returns E; the shader multiplies by the Lambert BRDF (÷π)."""
+    return _nine(sh, frame)
+
+
+def export_threejs(sh: SHCoeffs, frame: Frame = THREEJS) -> str:
+    """A ``LightProbe`` in three.js JSON object format (``ObjectLoader``), ``sh`` = 27 floats, RGB per coefficient."""
+    c = threejs_coefficients(sh, frame)
+    return json.dumps({
+        "metadata": {"version": 4.6, "type": "Object", "generator": "lightprobe"},
+        "object": {
+            "uuid": "5b0c0f0e-1a1b-4c2d-8e3f-000000000001",
+            "type": "LightProbe",
+            "name": "lightprobe irradiance (radiance SH L_lm, three.js frame)",
+            "layers": 1,
+            "matrix": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1],
+            "up": [0, 1, 0],
+            "color": 16777215,
+            "intensity": 1,
+            "sh": [float(v) for v in c.reshape(-1)],
+        },
+    }, indent=1)
+
+
+def filament_coefficients(sh: SHCoeffs, frame: Frame = FILAMENT) -> np.ndarray:
+    """Filament ``IndirectLight::Builder::irradiance(3, sh)``: sh[i] = L_lm · (1/π) · A_lm · Ĉ_l as IndirectLight.h
+    tabulates it (A_lm the CS-signed basis constants, L_lm Filament's CS-phase coefficients — the two signs cancel),
+    i.e. K_i Â_l L_lm / π with our L_lm: the shader's bare polynomial gives E/π. Filament frame (= world)."""
+    c = _nine(sh, frame)
+    return premultiply_basis_constants(irradiance_to_lambertian(radiance_to_irradiance(c)))
+
+
+def export_filament(sh: SHCoeffs, frame: Frame = FILAMENT) -> str:
+    """``sh.txt`` exactly as cmgen writes it: one line per coefficient, ``( r,  g,  b); // L00, irradiance,
+    pre-scaled base``, 15 decimals."""
+    c = filament_coefficients(sh, frame)
+    return "".join(f"({', '.join(f'{v: .15f}' for v in row)}); // {name(i)}, irradiance, pre-scaled base\n"
+                   for i, row in enumerate(c))
+
+
+def unity_coefficients(sh: SHCoeffs, frame: Frame = UNITY) -> np.ndarray:
+    """Unity ``SphericalHarmonicsL2`` as its shaders read it (unity_SHAr… built from sh[c, 0..8]): coefficient i of
+    channel c is K_i Â_l L_lm / π with L_lm stated in Unity's left-handed frame (x, y, −z of world), order
+    L00, L1−1 (y), L10 (z), L11 (x), L2−2, L2−1, L20, L21, L22. ShadeSH9 then returns E/π, which Unity multiplies by
+    the albedo. (Unity does not document this layout; it follows from unity_SHAr = (sh[3], sh[1], sh[2],
+    sh[0] − sh[6]), unity_SHBr = (sh[4], sh[5], 3 sh[6], sh[7]), unity_SHC = sh[8].)"""
+    c = _nine(sh, frame)
+    return premultiply_basis_constants(irradiance_to_lambertian(radiance_to_irradiance(c)))
+
+
+def export_unity(sh: SHCoeffs, frame: Frame = UNITY, csharp: bool = True) -> str:
+    """A C# method returning the ``SphericalHarmonicsL2`` (``csharp``), or JSON ``{"sh": [[9 r], [9 g], [9 b]]}``."""
+    c = unity_coefficients(sh, frame)
+    if not csharp:
+        return json.dumps({"format": "UnityEngine.Rendering.SphericalHarmonicsL2", "frame": frame.name,
+                           "scaling": "K_i * A_l * L_lm / pi (ShadeSH9 gives E/pi)",
+                           "sh": [[float(c[i, ch]) for i in range(9)] for ch in range(3)]}, indent=1)
+    lines = [f"        sh[{ch}, {i}] = {c[i, ch]:.9g}f;  // {'RGB'[ch]} {name(i)}"
+             for ch in range(3) for i in range(9)]
+    return ("// lightprobe export: ambient SH for Unity (frame: Unity's left-handed +Y up, +Z forward).\n"
+            "// Values are K_i * A_l * L_lm / pi, the layout ShadeSH9 / unity_SHAr.. expect (E/pi).\n"
+            "using UnityEngine.Rendering;\n\npublic static class LightprobeAmbient\n{\n"
+            "    public static SphericalHarmonicsL2 Create()\n    {\n        var sh = new SphericalHarmonicsL2();\n"
+            + "\n".join(lines) + "\n        return sh;\n    }\n}\n")
+
+
+def gltf_coefficients(sh: SHCoeffs, scaling: str = "babylon", frame: Frame = GLTF) -> np.ndarray:
+    """``EXT_lights_image_based.irradianceCoefficients`` (9 × RGB), glTF frame (= world), CS-phase basis.
+
+    The extension calls them "irradiance" but fixes neither the basis nor the π: ``scaling`` picks one.
+    ``babylon`` (default): π · L_lm — what Babylon.js's loader, the reference implementation, expects: it divides by
+    π (``convertIrradianceToLambertianRadiance``) and then applies the cosine convolution itself
+    (``SphericalPolynomial.FromHarmonics``). ``irradiance``: E_lm = Â_l L_lm, irradiance SH taken literally."""
+    c = to_condon_shortley(_nine(sh, frame))
+    if scaling == "babylon":
+        return times_pi(c)
+    if scaling == "irradiance":
+        return radiance_to_irradiance(c)
+    raise ValueError(f"unknown glTF scaling {scaling!r}; choose {', '.join(GLTF_SCALINGS)}")
+
+
+def export_gltf(sh: SHCoeffs, scaling: str = "babylon", frame: Frame = GLTF) -> str:
+    """The ``EXT_lights_image_based`` light object with ``irradianceCoefficients`` (merge it into a glTF; the
+    prefiltered specular images come from the radiance-map part of lightprobe)."""
+    c = gltf_coefficients(sh, scaling, frame)
+    return json.dumps({
+        "extensionsUsed": ["EXT_lights_image_based"],
+        "extensions": {"EXT_lights_image_based": {"lights": [{
+            "name": "lightprobe",
+            "intensity": 1.0,
+            "rotation": [0.0, 0.0, 0.0, 1.0],
+            "irradianceCoefficients": [[float(v) for v in row] for row in c],
+            "extras": {"lightprobe": {"scaling": scaling, "basis": "Condon-Shortley phase", "frame": frame.name}},
+        }]}},
+    }, indent=1)
+
+
+def babylon_polynomial(sh: SHCoeffs, frame: Frame = BABYLON) -> dict[str, np.ndarray]:
+    """Babylon.js ``SphericalPolynomial`` (x, y, z, xx, yy, zz, yz, zx, xy; RGB each) in Babylon's frame
+    (default left-handed: x, y, −z of world): its shader evaluates Σ coefficient × monomial(n) = E(n)/π.
+
+    Derived exactly from eq. 13: the constant c4 L00 − c5 L20 is spread over xx + yy + zz (= 1 on the sphere),
+    as Babylon's ``FromHarmonics`` does (whose 0.886277 is a misprint of c4 = 0.886227)."""
+    L = irradiance_to_lambertian(_nine(sh, frame))  # noqa: N806 - the paper's notation, /π folded in
+    const = C4 * L[0] - C5 * L[6]
+    return {
+        "x": 2 * C2 * L[3], "y": 2 * C2 * L[1], "z": 2 * C2 * L[2],
+        "xx": const + C1 * L[8], "yy": const - C1 * L[8], "zz": const + C3 * L[6],
+        "yz": 2 * C1 * L[5], "zx": 2 * C1 * L[7], "xy": 2 * C1 * L[4],
+    }
+
+
+def export_babylon(sh: SHCoeffs, frame: Frame = BABYLON) -> str:
+    """JSON with the ``polynomial`` (for ``SphericalPolynomial.FromArray`` order x, y, z, xx, yy, zz, yz, zx, xy) and
+    the ``harmonics`` (radiance, CS phase, for ``SphericalHarmonics.FromArray``), both in ``frame``."""
+    poly = babylon_polynomial(sh, frame)
+    harmonics = to_condon_shortley(_nine(sh, frame))
+    order = ["x", "y", "z", "xx", "yy", "zz", "yz", "zx", "xy"]
+    return json.dumps({
+        "format": "BABYLON.SphericalPolynomial", "frame": frame.name,
+        "polynomial_order": order,
+        "polynomial": [[float(v) for v in poly[k]] for k in order],
+        "harmonics": [[float(v) for v in row] for row in harmonics],
+        "note": "polynomial evaluates to E/pi; harmonics are radiance L_lm in Babylon's CS-phase basis",
+    }, indent=1)
+
+
+def export_glsl(sh: SHCoeffs, frame: Frame = WORLD) -> str:
+    """A GLSL snippet of eq. 13: nine radiance coefficients L_lm (no CS phase, ``frame``) and the constants c1..c5;
+    ``lightprobeIrradiance(n)`` returns E(n) (divide by π for a Lambertian surface)."""
+    c = _nine(sh, frame)
+    coeffs = "\n".join(f"const vec3 L{name(i)[1:].replace('-', 'm')} = vec3({', '.join(f'{v:.9g}' for v in row)});"
+                       f"  // {name(i)}" for i, row in enumerate(c))
+    return f"""// lightprobe: irradiance environment map, Ramamoorthi & Hanrahan 2001, eq. 13.
+// Radiance SH coefficients L_lm (basis without Condon-Shortley phase), frame: {frame.name}.
+// lightprobeIrradiance(n) returns irradiance E(n) for a unit normal n in that frame; a Lambertian surface of
+// albedo rho reflects rho * E / pi.
+{coeffs}
+const float c1 = {C1:.9f};  // (pi/4) * 0.546274            (band 2, x^2-y^2 and 2*c1 for xy, yz, xz)
+const float c2 = {C2:.9f};  // (2pi/3) * 0.488603 / 2        (band 1, used as 2*c2)
+const float c3 = {C3:.9f};  // (pi/4) * 0.315392 * 3         (band 2, z^2)
+const float c4 = {C4:.9f};  // pi * 0.282095                 (band 0)
+const float c5 = {C5:.9f};  // (pi/4) * 0.315392             (band 2, constant part of L20)
+
+vec3 lightprobeIrradiance(vec3 n) {{
+    return c1 * L22 * (n.x * n.x - n.y * n.y) + c3 * L20 * n.z * n.z + c4 * L00 - c5 * L20
+         + 2.0 * c1 * (L2m2 * n.x * n.y + L21 * n.x * n.z + L2m1 * n.y * n.z)
+         + 2.0 * c2 * (L11 * n.x + L1m1 * n.y + L10 * n.z);
+}}
+"""
+
+
+def export(sh: SHCoeffs, target: str, frame: str | Frame | None = None, gltf_scaling: str = "babylon",
+           csharp: bool = True) -> str:
+    """Text of ``sh`` for ``target`` (one of :data:`TARGETS`), in the target's frame unless ``frame`` is given."""
+    if target not in TARGETS:
+        raise ValueError(f"unknown export target {target!r}; choose one of {', '.join(TARGETS)}")
+    f = frame_named(frame) if frame is not None else DEFAULT_FRAMES[target]
+    if target == "json":
+        return export_json(sh, f)
+    if target == "threejs":
+        return export_threejs(sh, f)
+    if target == "filament":
+        return export_filament(sh, f)
+    if target == "unity":
+        return export_unity(sh, f, csharp)
+    if target == "gltf":
+        return export_gltf(sh, gltf_scaling, f)
+    if target == "babylon":
+        return export_babylon(sh, f)
+    return export_glsl(sh, f)

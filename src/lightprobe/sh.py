@@ -1,0 +1,363 @@
+"""Real spherical harmonics in Ramamoorthi & Hanrahan's convention (SPEC §3), any order.
+
+Convention (stated once, used everywhere):
+
+* Y_lm(θ, φ) = N_lm P_l^|m|(cos θ) az_m(φ), az_0 = 1, az_{+m} = √2 cos mφ, az_{−m} = √2 sin |m|φ, with P_l^m the
+  associated Legendre functions **without** the Condon–Shortley phase (−1)^m. So Y1−1 = +0.488603 y,
+  Y10 = +0.488603 z, Y11 = +0.488603 x (the dissertation's eq. 4.5; the SIGGRAPH text's ordering is a misprint).
+* θ, φ are the polar angles of a direction about the +z axis of the **frame in which coefficients are stated**
+  (:class:`SHCoeffs.frame`); for the world frame that is world +Z (backwards), not +Y (up).
+* Flat index i = l(l+1) + m: L00, L1−1, L10, L11, L2−2, L2−1, L20, L21, L22, …
+* Quantities: ``radiance`` coefficients L_lm of the environment, or ``irradiance`` coefficients E_lm = Â_l L_lm
+  (E(n) = Σ E_lm Y_lm(n), irradiance at a surface with normal n; **not** divided by π). Engine pre-scaled forms
+  live in :mod:`lightprobe.export`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from functools import lru_cache
+from math import factorial, pi, sqrt
+
+import numpy as np
+from numba import njit, prange
+
+from .envmap import EnvMap
+from .frames import WORLD, Frame, frame as frame_named
+from .layouts import LatLong
+
+QUANTITIES = ("radiance", "irradiance")
+
+
+# ---- indexing -----------------------------------------------------------------------------------------------------
+def n_coeffs(l_max: int) -> int:
+    """(l_max + 1)², the number of coefficients up to band l_max."""
+    return (l_max + 1) ** 2
+
+
+def index(l: int, m: int) -> int:
+    """Flat index l(l+1) + m."""
+    return l * (l + 1) + m
+
+
+def degree_order(i: int) -> tuple[int, int]:
+    """(l, m) of flat index i."""
+    l = int(np.floor(np.sqrt(i)))
+    return l, i - l * (l + 1)
+
+
+def name(i: int) -> str:
+    """Coefficient name as in the paper: L00, L1-1, L10, …"""
+    l, m = degree_order(i)
+    return f"L{l}{m}"
+
+
+def l_max_of(n: int) -> int:
+    l = int(round(np.sqrt(n))) - 1
+    if (l + 1) ** 2 != n:
+        raise ValueError(f"{n} is not a number of SH coefficients (a square)")
+    return l
+
+
+def band_of_each(l_max: int) -> np.ndarray:
+    """The band l of every flat index up to l_max."""
+    return np.concatenate([np.full(2 * l + 1, l) for l in range(l_max + 1)])
+
+
+# ---- the basis ----------------------------------------------------------------------------------------------------
+def basis(l_max: int, d: np.ndarray) -> np.ndarray:
+    """Y_lm(d) for all l ≤ l_max, shape d.shape[:-1] + ((l_max+1)²,); d are unit vectors in the coefficients' frame.
+
+    Evaluated with the fully normalised associated-Legendre recurrences on P_l^m / sin^m θ and the exact
+    polynomials Re/Im (x + iy)^m, so there is no sqrt, no atan2 and no loss at the poles.
+    """
+    d = np.asarray(d, dtype=np.float64)
+    x, y, z = d[..., 0], d[..., 1], d[..., 2]
+    out = np.empty(d.shape[:-1] + (n_coeffs(l_max),))
+    cos_m, sin_m = np.ones_like(x), np.zeros_like(x)  # Re, Im of (x + iy)^m
+    p_mm = np.full_like(x, 1 / sqrt(4 * pi))  # normalised P_m^m / sin^m θ
+    for m in range(l_max + 1):
+        if m > 0:
+            p_mm = p_mm * sqrt((2 * m + 1) / (2 * m))
+            cos_m, sin_m = cos_m * x - sin_m * y, sin_m * x + cos_m * y
+        p_prev, p_cur = np.zeros_like(x), p_mm
+        for l in range(m, l_max + 1):
+            if l == m + 1:
+                p_prev, p_cur = p_cur, z * sqrt(2 * m + 3) * p_cur
+            elif l > m + 1:
+                a = sqrt((4 * l * l - 1) / (l * l - m * m))
+                b = sqrt(((l - 1) ** 2 - m * m) / (4 * (l - 1) ** 2 - 1))
+                p_prev, p_cur = p_cur, a * (z * p_cur - b * p_prev)
+            if m == 0:
+                out[..., index(l, 0)] = p_cur
+            else:
+                out[..., index(l, m)] = sqrt(2) * p_cur * cos_m
+                out[..., index(l, -m)] = sqrt(2) * p_cur * sin_m
+    return out
+
+
+def normalisation(l: int, m: int) -> float:
+    """N_lm = √((2l+1)/(4π) · (l−|m|)!/(l+|m|)!) (SPEC §3)."""
+    m = abs(m)
+    return sqrt((2 * l + 1) / (4 * pi) * factorial(l - m) / factorial(l + m))
+
+
+def a_hat(l: int) -> float:
+    """Â_l, the SH coefficients of the clamped cosine (paper eqs. 8–9): π, 2π/3, π/4, 0, −π/24, 0, π/64, …"""
+    if l == 0:
+        return pi
+    if l == 1:
+        return 2 * pi / 3
+    if l % 2:
+        return 0.0
+    h = l // 2
+    return 2 * pi * (-1) ** (h - 1) / ((l + 2) * (l - 1)) * factorial(l) / (2**l * factorial(h) ** 2)
+
+
+def a_hat_per_coefficient(l_max: int) -> np.ndarray:
+    return np.array([a_hat(l) for l in band_of_each(l_max)])
+
+
+# ---- frame changes and rotations ------------------------------------------------------------------------------------
+def _sample_directions(n: int) -> np.ndarray:
+    """n well-spread directions (Fibonacci sphere), deterministic."""
+    i = np.arange(n) + 0.5
+    z = 1 - 2 * i / n
+    r = np.sqrt(1 - z * z)
+    phi = np.pi * (1 + 5**0.5) * i
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=-1)
+
+
+def transform_matrix(l_max: int, q: np.ndarray) -> np.ndarray:
+    """Matrix T with b = T a, where a are the coefficients of f and b those of f'(d) = f(Qᵀ d), for any orthogonal
+    Q (a rotation, or a mirror such as the world → rh2001 frame change). Block-diagonal by band.
+
+    Each band block is solved exactly from Y_l(Qᵀ d) = D_l Y_l(d) at well-spread directions: band l is closed under
+    O(3), so the system is consistent and least squares returns the exact matrix (to ~1e-13); this is the
+    "equivalent exact method" SPEC §1 allows in place of the Ivanic–Ruedenberg recurrence, and it needs no sign
+    bookkeeping for mirrors.
+    """
+    q = np.asarray(q, dtype=np.float64)
+    return _transform_matrix(l_max, q.tobytes())
+
+
+@lru_cache(maxsize=64)
+def _transform_matrix(l_max: int, q_bytes: bytes) -> np.ndarray:
+    q = np.frombuffer(q_bytes).reshape(3, 3)
+    d = _sample_directions(4 * (2 * l_max + 1) + 8)
+    y, yq = basis(l_max, d), basis(l_max, d @ q)  # rows: Y(d_k), Y(Qᵀ d_k)  (row-vector d @ Q = (Qᵀ d)ᵀ)
+    t = np.zeros((n_coeffs(l_max), n_coeffs(l_max)))
+    for l in range(l_max + 1):
+        s = slice(l * l, (l + 1) ** 2)
+        t[s, s] = np.linalg.lstsq(y[:, s], yq[:, s], rcond=None)[0]  # solves Y·Dᵀ = Y_q: T = Dᵀ
+    t.setflags(write=False)
+    return t
+
+
+# ---- windows --------------------------------------------------------------------------------------------------------
+WINDOWS = ("none", "hanning", "lanczos", "auto")
+
+
+def window_weights(kind: str, l_max: int, width: float | None = None) -> np.ndarray:
+    """Per-band weights w_l (l = 0..l_max) of a de-ringing window of ``width`` (default l_max + 1).
+
+    ``hanning``: w_l = (1 + cos(πl/W))/2; ``lanczos``: w_l = sinc(l/W); both 0 for l ≥ W. ``none``: 1.
+    """
+    l = np.arange(l_max + 1, dtype=np.float64)
+    w = float(width if width is not None else l_max + 1)
+    if kind == "none":
+        return np.ones(l_max + 1)
+    if kind == "hanning":
+        return np.where(l < w, 0.5 * (1 + np.cos(np.pi * l / w)), 0.0)
+    if kind == "lanczos":
+        return np.where(l < w, np.sinc(l / w), 0.0)
+    raise ValueError(f"unknown window {kind!r}; choose one of {', '.join(WINDOWS)}")
+
+
+# ---- the coefficient type -------------------------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class SHCoeffs:
+    """SH coefficients of an RGB function on the sphere.
+
+    ``coeffs``: ((l_max+1)², 3) float64 in flat order; ``frame``: the frame whose +z the basis is built about;
+    ``quantity``: ``radiance`` (L_lm) or ``irradiance`` (E_lm = Â_l L_lm); ``window``: the de-ringing window
+    applied, if any (e.g. ``lanczos(3.7)``).
+    """
+
+    coeffs: np.ndarray
+    frame: Frame = WORLD
+    quantity: str = "radiance"
+    window: str = "none"
+
+    def __post_init__(self) -> None:
+        c = np.array(self.coeffs, dtype=np.float64)
+        if c.ndim == 1:
+            c = c[:, None]
+        l_max_of(c.shape[0])
+        if self.quantity not in QUANTITIES:
+            raise ValueError(f"unknown quantity {self.quantity!r}; one of {QUANTITIES}")
+        c.setflags(write=False)
+        object.__setattr__(self, "coeffs", c)
+
+    @property
+    def l_max(self) -> int:
+        return l_max_of(self.coeffs.shape[0])
+
+    def __getitem__(self, lm: tuple[int, int]) -> np.ndarray:
+        return self.coeffs[index(*lm)]
+
+    def evaluate(self, d_world: np.ndarray) -> np.ndarray:
+        """The function at world directions (..., 3): radiance for ``radiance``, E(n) for ``irradiance``."""
+        d = self.frame.from_world(np.asarray(d_world, dtype=np.float64))
+        return basis(self.l_max, d) @ self.coeffs
+
+    def to_irradiance(self) -> SHCoeffs:
+        """E_lm = Â_l L_lm (paper eq. 7). Refuses coefficients that already are irradiance."""
+        if self.quantity != "radiance":
+            raise ValueError(f"these coefficients are already {self.quantity}; convolving twice is an error")
+        return replace(self, coeffs=self.coeffs * a_hat_per_coefficient(self.l_max)[:, None], quantity="irradiance")
+
+    def to_frame(self, target: str | Frame) -> SHCoeffs:
+        """The same function stated in another frame (SPEC §1: world → rh2001 negates L10, L2−1, L21, …)."""
+        target = frame_named(target)
+        q = target.to_frame @ self.frame.to_frame.T  # this frame → target frame
+        return replace(self, coeffs=transform_matrix(self.l_max, q) @ self.coeffs, frame=target)
+
+    def rotated(self, rotation: np.ndarray) -> SHCoeffs:
+        """The lighting turned by a world rotation R (light from d moves to R·d), exactly, in the same frame."""
+        r = np.asarray(rotation, dtype=np.float64)
+        q = self.frame.to_frame @ r @ self.frame.to_frame.T  # R expressed in this frame
+        return replace(self, coeffs=transform_matrix(self.l_max, q) @ self.coeffs)
+
+    def truncated(self, l_max: int) -> SHCoeffs:
+        return replace(self, coeffs=self.coeffs[: n_coeffs(l_max)])
+
+    def windowed(self, kind: str, width: float | None = None) -> SHCoeffs:
+        """Coefficients times a de-ringing window (see :func:`window_weights`; ``auto``: :func:`auto_window`)."""
+        if kind == "auto":
+            return auto_window(self)
+        w = window_weights(kind, self.l_max, width)[band_of_each(self.l_max)]
+        label = "none" if kind == "none" else f"{kind}({width if width is not None else self.l_max + 1:g})"
+        return replace(self, coeffs=self.coeffs * w[:, None], window=label)
+
+    def scaled_band(self, l: int, factor: float) -> SHCoeffs:
+        """Lighting design: multiply band l by ``factor``."""
+        c = self.coeffs.copy()
+        c[l * l : (l + 1) ** 2] *= factor
+        return replace(self, coeffs=c)
+
+    def with_coefficient(self, lm: tuple[int, int], rgb) -> SHCoeffs:
+        """Lighting design: set one coefficient (all channels to one value, or an RGB triple)."""
+        c = self.coeffs.copy()
+        c[index(*lm)] = np.broadcast_to(np.asarray(rgb, dtype=np.float64), (3,))
+        return replace(self, coeffs=c)
+
+    def as_list(self) -> list[list[float]]:
+        return [[float(v) for v in row] for row in self.coeffs]
+
+
+def auto_window(sh: SHCoeffs, samples: int = 16384) -> SHCoeffs:
+    """The widest Lanczos window (least blurring) whose reconstructed irradiance is ≥ 0 everywhere, per channel.
+
+    Like Filament cmgen's ``--sh-window auto``: ringing around a bright sun makes the irradiance opposite it
+    negative; a window that just removes the negative lobes keeps as much detail as possible. Found by bisection
+    on 1/W, checking the minimum over ``samples`` well-spread normals (the minimum only falls as the window opens).
+    """
+    if sh.quantity != "radiance":
+        raise ValueError("the auto window needs radiance coefficients")
+    y = basis(sh.l_max, sh.frame.from_world(_sample_directions(samples)))  # evaluated once for the whole search
+    bands = band_of_each(sh.l_max)
+    convolved = sh.coeffs * a_hat_per_coefficient(sh.l_max)[:, None]
+
+    def min_irradiance(width: float) -> float:
+        w = window_weights("lanczos", sh.l_max, width)[bands]
+        return float((y @ (convolved * w[:, None])).min())
+
+    if min_irradiance(np.inf) >= 0:
+        return replace(sh, window="auto(none needed)")
+    lo, hi = 0.0, 1.0  # t = 1/W: t = 1 keeps only band 0 (never negative for a non-negative map)
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        if min_irradiance(1 / mid) >= 0:
+            hi = mid
+        else:
+            lo = mid
+    out = sh.windowed("lanczos", 1 / hi)
+    return replace(out, window=f"auto:lanczos({1 / hi:.6g})")
+
+
+# ---- projection -----------------------------------------------------------------------------------------------------
+# A lat-long row is a ring of constant θ about +Y. In the frame P below, the SH polar axis is +Y and P's (θ, φ) are
+# exactly the lat-long's, so the projection separates into row sums against cos/sin tables and a per-row Legendre
+# weighting. P is x' = −Z, y' = +X, z' = +Y (a mirror of the world frame; transform_matrix handles mirrors).
+_LATLONG_POLAR = np.array([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+
+
+@njit(cache=True, parallel=True, fastmath=True)
+def _latlong_row_sums(img, cos_table, sin_table, out):  # pragma: no cover - compiled
+    """out[r, m, c] = Σ_col img[r, col, c]·cos(mφ_col); out[r, M+1+m, c] the same with sin (m ≥ 1)."""
+    h, w, nch = img.shape
+    nm = cos_table.shape[0]
+    for r in prange(h):
+        acc = np.zeros((2 * nm, nch))
+        for col in range(w):
+            for c in range(nch):
+                v = np.float64(img[r, col, c])
+                for m in range(nm):
+                    acc[m, c] += v * cos_table[m, col]
+                    acc[nm + m, c] += v * sin_table[m, col]
+        out[r] = acc
+
+
+def _project_latlong(env: EnvMap, l_max: int) -> np.ndarray:
+    h, w = env.grid
+    phi = 2 * np.pi * ((np.arange(w) + 0.5) / w - 0.5)
+    m = np.arange(l_max + 1)[:, None]
+    sums = np.empty((h, 2 * (l_max + 1), 3))
+    _latlong_row_sums(np.ascontiguousarray(env.data), np.cos(m * phi), np.sin(m * phi), sums)
+    theta = np.pi * (np.arange(h) + 0.5) / h
+    ring = np.stack([np.sin(theta), np.zeros(h), np.cos(theta)], axis=-1)  # φ = 0 point of each row, frame P
+    legendre = basis(l_max, ring)  # at φ = 0: Y_l,+m = √2 N P cos 0, Y_l,−m = 0
+    omega = env.solid_angles()[:, 0]  # every pixel of a row has the same solid angle
+    coeffs = np.zeros((n_coeffs(l_max), 3))
+    for l in range(l_max + 1):
+        coeffs[index(l, 0)] = (omega * legendre[:, index(l, 0)]) @ sums[:, 0]
+        for mm in range(1, l + 1):
+            weight = omega * legendre[:, index(l, mm)]  # = √2 N_lm P_l^m(cos θ) (the √2 included)
+            coeffs[index(l, mm)] = weight @ sums[:, mm]
+            coeffs[index(l, -mm)] = weight @ sums[:, l_max + 1 + mm]
+    # coefficients of L in frame P; L(d_world) = g(P d) ⇒ world coefficients are g's transformed by Q = Pᵀ
+    return transform_matrix(l_max, _LATLONG_POLAR.T) @ coeffs
+
+
+def _project_generic(env: EnvMap, l_max: int, chunk: int = 1 << 16) -> np.ndarray:
+    d = env.directions().reshape(-1, 3)
+    weighted = (env.data.reshape(-1, 3) * env.solid_angles().reshape(-1, 1)).astype(np.float64)
+    keep = np.nonzero(np.any(weighted != 0, axis=1))[0]
+    coeffs = np.zeros((n_coeffs(l_max), 3))
+    for start in range(0, keep.size, chunk):
+        idx = keep[start : start + chunk]
+        coeffs += basis(l_max, d[idx]).T @ weighted[idx]
+    return coeffs
+
+
+def project(env: EnvMap, l_max: int = 2, frame: str | Frame = WORLD, fast: bool = True) -> SHCoeffs:
+    """Radiance SH coefficients L_lm = Σ_pixels L(d_p) Y_lm(d_p) Δω_p (exact per-pixel solid angles), in ``frame``.
+
+    Lat-long maps use the separable row-sum kernel (one pass over the pixels, O(S·l_max) work); every other layout
+    evaluates the basis at its pixel directions. Both compute the same sum.
+    """
+    if l_max < 0:
+        raise ValueError("l_max must be ≥ 0")
+    if fast and isinstance(env.layout, LatLong):
+        coeffs = _project_latlong(env, l_max)
+    else:
+        coeffs = _project_generic(env, l_max)
+    return SHCoeffs(coeffs).to_frame(frame)
+
+
+def delta_light(direction, power_rgb, l_max: int = 2) -> SHCoeffs:
+    """Radiance coefficients of a distant point light: L_lm = Φ Y_lm(s) (world frame), for analytic checks."""
+    s = np.asarray(direction, dtype=np.float64)
+    s = s / np.linalg.norm(s)
+    return SHCoeffs(basis(l_max, s)[:, None] * np.asarray(power_rgb, dtype=np.float64)[None, :])

@@ -1,0 +1,196 @@
+"""Engine exports, each evaluated with that engine's own reconstruction formula (written here from the engines'
+documentation and shader code, independently of lightprobe.export), against two golden cases:
+
+* white furnace: uniform radiance 1 → E = π, E/π = 1 for every normal;
+* a point light of power Φ from direction s → E(n) = Φ (¼ + ½ cos γ + 5/32 (3cos²γ − 1)), the clamped-cosine series
+  to band 2 (Σ Â_l (2l+1)/4π P_l(cos γ)), independent of any basis or sign convention.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+
+import numpy as np
+import pytest
+
+from conftest import random_directions
+from lightprobe.export import TARGETS, export
+from lightprobe.sh import SHCoeffs, delta_light
+
+SUN = np.array([0.35, 0.75, -0.56])
+SUN /= np.linalg.norm(SUN)
+POWER = np.array([3.0, 2.0, 1.0])
+NORMALS = random_directions(400, seed=3)  # world frame
+
+
+def furnace() -> SHCoeffs:
+    c = np.zeros((9, 3))
+    c[0] = np.sqrt(4 * np.pi)  # uniform radiance 1
+    return SHCoeffs(c)
+
+
+def expected_over_pi(case: str) -> np.ndarray:
+    if case == "furnace":
+        return np.ones((len(NORMALS), 3))
+    g = NORMALS @ SUN
+    return (0.25 + 0.5 * g + 5 / 32 * (3 * g * g - 1))[:, None] * POWER / np.pi
+
+
+def source(case: str) -> SHCoeffs:
+    return furnace() if case == "furnace" else delta_light(SUN, POWER)
+
+
+UNITY_FLIP = np.array([1.0, 1.0, -1.0])  # world → Unity / Babylon (left-handed, +Z forward)
+
+
+# ---- the engines' reconstruction formulas ---------------------------------------------------------------------------
+def threejs_irradiance_over_pi(text: str) -> np.ndarray:
+    """three.js SphericalHarmonics3.getIrradianceAt (E), then the Lambert BRDF 1/π."""
+    sh = np.array(json.loads(text)["object"]["sh"]).reshape(9, 3)
+    x, y, z = (NORMALS[:, k, None] for k in range(3))
+    e = (sh[0] * 0.886227 + sh[1] * 2 * 0.511664 * y + sh[2] * 2 * 0.511664 * z + sh[3] * 2 * 0.511664 * x
+         + sh[4] * 2 * 0.429043 * x * y + sh[5] * 2 * 0.429043 * y * z + sh[6] * (0.743125 * z * z - 0.247708)
+         + sh[7] * 2 * 0.429043 * x * z + sh[8] * 0.429043 * (x * x - y * y))
+    return e / np.pi
+
+
+def filament_irradiance_over_pi(text: str) -> np.ndarray:
+    """Filament's shader: the bare polynomial over pre-scaled sh.txt values (which already include 1/π)."""
+    rows = re.findall(r"\(\s*([-\d.]+),\s*([-\d.]+),\s*([-\d.]+)\);\s*// (L\S+), irradiance, pre-scaled base", text)
+    assert [r[3] for r in rows] == ["L00", "L1-1", "L10", "L11", "L2-2", "L2-1", "L20", "L21", "L22"]
+    sh = np.array([[float(v) for v in r[:3]] for r in rows])
+    x, y, z = (NORMALS[:, k, None] for k in range(3))
+    return (sh[0] + sh[1] * y + sh[2] * z + sh[3] * x + sh[4] * y * x + sh[5] * y * z
+            + sh[6] * (3 * z * z - 1) + sh[7] * z * x + sh[8] * (x * x - y * y))
+
+
+def unity_irradiance_over_pi(text: str) -> np.ndarray:
+    """Unity ShadeSH9 with unity_SHA/B/C built from SphericalHarmonicsL2 (normal in Unity's frame)."""
+    values = {(int(c), int(i)): float(v) for c, i, v in re.findall(r"sh\[(\d), (\d)\] = ([-\d.e+]+)f;", text)}
+    assert len(values) == 27
+    n = NORMALS * UNITY_FLIP
+    out = np.zeros((len(n), 3))
+    for ch in range(3):
+        s = [values[(ch, i)] for i in range(9)]
+        sha = np.array([s[3], s[1], s[2], s[0] - s[6]])
+        shb = np.array([s[4], s[5], 3 * s[6], s[7]])
+        n1 = np.concatenate([n, np.ones((len(n), 1))], axis=1)
+        vb = n[:, [0, 1, 2, 2]] * n[:, [1, 2, 2, 0]]  # normal.xyzz * normal.yzzx
+        vc = n[:, 0] ** 2 - n[:, 1] ** 2
+        out[:, ch] = n1 @ sha + vb @ shb + s[8] * vc
+    return out
+
+
+def babylon_from_harmonics_over_pi(cs_radiance: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """Babylon's SphericalPolynomial.FromHarmonics (CS-phase radiance → E/π polynomial), then its evaluation.
+    (Babylon's 0.886277 is used as written: its 5.6e-5 relative misprint is inside the tolerance.)"""
+    h = cs_radiance
+    p = {"x": -1.02333 * h[3], "y": -1.02333 * h[1], "z": 1.02333 * h[2],
+         "xx": 0.886277 * h[0] - 0.247708 * h[6] + 0.429043 * h[8],
+         "yy": 0.886277 * h[0] - 0.247708 * h[6] - 0.429043 * h[8],
+         "zz": 0.886277 * h[0] + 0.495417 * h[6],
+         "yz": -0.858086 * h[5], "zx": -0.858086 * h[7], "xy": 0.858086 * h[4]}
+    p = {k: v / np.pi for k, v in p.items()}
+    return evaluate_polynomial(p, n)
+
+
+def evaluate_polynomial(p: dict, n: np.ndarray) -> np.ndarray:
+    x, y, z = (n[:, k, None] for k in range(3))
+    return (p["x"] * x + p["y"] * y + p["z"] * z + p["xx"] * x * x + p["yy"] * y * y + p["zz"] * z * z
+            + p["yz"] * y * z + p["zx"] * z * x + p["xy"] * x * y)
+
+
+def babylon_irradiance_over_pi(text: str) -> np.ndarray:
+    data = json.loads(text)
+    p = {k: np.array(v) for k, v in zip(data["polynomial_order"], data["polynomial"])}
+    via_polynomial = evaluate_polynomial(p, NORMALS * UNITY_FLIP)
+    via_harmonics = babylon_from_harmonics_over_pi(np.array(data["harmonics"]), NORMALS * UNITY_FLIP)
+    # Babylon's constants are printed to 6 digits (and 0.886277 is a misprint): agreement to ~2e-5 absolute
+    np.testing.assert_allclose(via_polynomial, via_harmonics, rtol=2e-4, atol=2e-5 * np.abs(via_polynomial).max())
+    return via_polynomial
+
+
+def gltf_babylon_irradiance_over_pi(text: str) -> np.ndarray:
+    """Babylon's EXT_lights_image_based loader: FromArray → ÷π (convertIrradianceToLambertianRadiance) →
+    FromHarmonics."""
+    light = json.loads(text)["extensions"]["EXT_lights_image_based"]["lights"][0]
+    c = np.array(light["irradianceCoefficients"]) / np.pi
+    return babylon_from_harmonics_over_pi(c, NORMALS)
+
+
+def gltf_literal_irradiance_over_pi(text: str) -> np.ndarray:
+    """irradianceCoefficients read literally as irradiance SH E_lm in the CS-phase basis: E(n) = Σ E_lm Y^CS_lm(n)."""
+    c = np.array(json.loads(text)["extensions"]["EXT_lights_image_based"]["lights"][0]["irradianceCoefficients"])
+    x, y, z = (NORMALS[:, k, None] for k in range(3))
+    y_cs = [0.282095, -0.488603 * y, 0.488603 * z, -0.488603 * x, 1.092548 * x * y, -1.092548 * y * z,
+            0.315392 * (3 * z * z - 1), -1.092548 * x * z, 0.546274 * (x * x - y * y)]
+    return sum(c[i] * y_cs[i] for i in range(9)) / np.pi
+
+
+def glsl_irradiance_over_pi(text: str) -> np.ndarray:
+    """Run the GLSL snippet's arithmetic: its constants and return expression evaluated as written."""
+    env = {}
+    for var, body in re.findall(r"const vec3 (\w+) = vec3\(([^)]*)\);", text):
+        env[var] = np.array([float(v) for v in body.split(",")])
+    for var, val in re.findall(r"const float (\w+) = ([-\d.e+]+);", text):
+        env[var] = float(val)
+    expr = re.search(r"return (.*?);", text, re.S).group(1)
+    env.update({"n": None})
+    x, y, z = (NORMALS[:, k, None] for k in range(3))
+    expr = expr.replace("n.x", "x").replace("n.y", "y").replace("n.z", "z")
+    return eval(f"({expr})", {}, {**env, "x": x, "y": y, "z": z}) / np.pi  # noqa: S307 - our own snippet
+
+
+def json_irradiance_over_pi(text: str) -> np.ndarray:
+    data = json.loads(text)
+    sh = SHCoeffs(np.array(data["coefficients"]))
+    assert data["frame"] == "world" and data["quantity"] == "radiance"
+    return sh.to_irradiance().evaluate(NORMALS) / np.pi
+
+
+EVALUATORS = {
+    "json": (json_irradiance_over_pi, {}),
+    "threejs": (threejs_irradiance_over_pi, {}),
+    "filament": (filament_irradiance_over_pi, {}),
+    "unity": (unity_irradiance_over_pi, {}),
+    "gltf": (gltf_babylon_irradiance_over_pi, {"gltf_scaling": "babylon"}),
+    "gltf-irradiance": (gltf_literal_irradiance_over_pi, {"gltf_scaling": "irradiance"}),
+    "babylon": (babylon_irradiance_over_pi, {}),
+    "glsl": (glsl_irradiance_over_pi, {}),
+}
+
+
+@pytest.mark.parametrize("case", ["furnace", "point light"])
+@pytest.mark.parametrize("target", list(EVALUATORS))
+def test_export_golden(target, case):
+    evaluate, options = EVALUATORS[target]
+    text = export(source(case), target.split("-")[0], **options)
+    got = evaluate(text)
+    # printed engine constants carry 6 digits; Babylon's 0.886277 misprint is 5.6e-5
+    np.testing.assert_allclose(got, expected_over_pi(case), rtol=2e-4, atol=2e-5 * POWER.max())
+
+
+def test_every_target_has_a_golden_test():
+    assert set(TARGETS) <= {t.split("-")[0] for t in EVALUATORS}
+
+
+def test_filament_text_is_exactly_cmgen_format():
+    lines = export(furnace(), "filament").splitlines()
+    assert lines[0] == "( 0.999999999999999,  0.999999999999999,  0.999999999999999); // L00, irradiance, pre-scaled base" \
+        or re.fullmatch(r"\( 1\.000000000000000,  1\.000000000000000,  1\.000000000000000\); // L00, irradiance, "
+                        r"pre-scaled base", lines[0])
+    assert len(lines) == 9 and lines[8].endswith("// L22, irradiance, pre-scaled base")
+
+
+def test_exports_refuse_irradiance_input():
+    with pytest.raises(ValueError, match="radiance"):
+        export(furnace().to_irradiance(), "threejs")
+
+
+def test_a_mirror_frame_is_not_a_rotation():
+    """Unity's frame flips z: the light from world −Z (front) must light Unity normals facing +Z."""
+    front = delta_light([0, 0, -1], [1, 1, 1])
+    text = export(front, "unity")
+    values = {(int(c), int(i)): float(v) for c, i, v in re.findall(r"sh\[(\d), (\d)\] = ([-\d.e+]+)f;", text)}
+    assert values[(0, 2)] > 0  # L10 (z) positive in Unity's frame: the light is at Unity +Z

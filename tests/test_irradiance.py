@@ -1,0 +1,76 @@
+"""Irradiance: eq. 12/13 against the general formula, brute force against analytic cases, the paper's error claim."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import random_directions, shared
+from lightprobe.envmap import EnvMap, box_reduce, read_envmap
+from lightprobe.irradiance import (brute_irradiance, error_report, irradiance_map, irradiance_matrices,
+                                   irradiance_polynomial, irradiance_quadratic, reference_normals)
+from lightprobe.layouts import LATLONG
+from lightprobe.sh import SHCoeffs, project
+
+
+def test_matrix_and_polynomial_forms_equal_the_general_formula():
+    sh = SHCoeffs(np.random.default_rng(4).normal(size=(16, 3)))  # bands above 2 must be ignored by both forms
+    n = random_directions(1000)
+    general = sh.truncated(2).to_irradiance().evaluate(n)
+    np.testing.assert_allclose(irradiance_quadratic(irradiance_matrices(sh), n), general, atol=1e-13)
+    np.testing.assert_allclose(irradiance_polynomial(sh, n), general, atol=1e-13)
+    m = irradiance_matrices(sh)
+    assert np.allclose(m, np.transpose(m, (0, 2, 1)))  # symmetric, as eq. 12
+
+
+def test_brute_force_white_furnace_and_half_sky():
+    grid = LATLONG.grid_shape(64)
+    d = LATLONG.directions(grid)
+    white = EnvMap(np.ones(grid + (3,)), LATLONG)
+    n = random_directions(200)
+    np.testing.assert_allclose(brute_irradiance(white, n), np.pi, rtol=1e-3)
+    sky = EnvMap(np.where(d[..., 1:2] > 0, 1.0, 0.0) * np.ones(3), LATLONG)  # uniform upper hemisphere
+    cos_t = n[:, 1]
+    expected = np.pi * (1 + cos_t) / 2  # irradiance of a uniform hemisphere of radiance 1, tilted normal
+    np.testing.assert_allclose(brute_irradiance(sky, n)[:, 0], expected, atol=2e-2)
+
+
+def test_brute_force_equals_sh_for_band_limited_light():
+    """Light that has no energy above band 2 has SH9 irradiance equal to the truth (cosine kills nothing)."""
+    rng = np.random.default_rng(8)
+    truth = rng.normal(size=(9, 3)) * 0.3
+    truth[0] = 4.0
+    grid = LATLONG.grid_shape(128)
+    env = EnvMap(SHCoeffs(truth).evaluate(LATLONG.directions(grid)), LATLONG)
+    n = random_directions(100)
+    np.testing.assert_allclose(brute_irradiance(env, n), SHCoeffs(truth).to_irradiance().evaluate(n), rtol=2e-3)
+
+
+@pytest.fixture(scope="module")
+def grace():
+    return box_reduce(read_envmap(shared("debevec/angular/grace_probe.hdr")))
+
+
+def test_paper_error_claim_on_grace(grace):
+    """Order 2: mean under 1 %, max under 5 % of total intensity (paper); the relative error reported too."""
+    r = error_report(grace, 2, normals=reference_normals(800))
+    assert r.paper_mean < 0.01 and r.paper_max < 0.05
+    assert 0.02 < r.relative_mean < 0.1 and r.relative_max > 0.2  # what a person sees on the dark side
+
+
+def test_error_falls_with_order_and_windows_cost_accuracy(grace):
+    normals = reference_normals(600)
+    ref = brute_irradiance(grace, normals)
+    sh = project(grace, 6)
+    errs = [error_report(grace, l, normals=normals, reference=ref, sh=sh).paper_mean for l in (2, 4, 6)]
+    assert errs[0] > errs[1] > errs[2]
+    plain = error_report(grace, 2, "none", normals, ref, sh)
+    hann = error_report(grace, 2, "hanning", normals, ref, sh)
+    assert hann.paper_mean > plain.paper_mean
+
+
+def test_irradiance_map_sh_against_brute(grace):
+    sh_map = irradiance_map(grace, "latlong", 16, "sh", 6)
+    brute = irradiance_map(grace, "latlong", 16, "brute")
+    rel = np.abs(sh_map.data - brute.data).mean() / brute.data.mean()
+    assert rel < 0.02
