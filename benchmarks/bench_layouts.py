@@ -12,11 +12,8 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import time
-from pathlib import Path
 
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-os.environ.setdefault("LIGHTPROBE_PROGRESS", "0")
+from common import SHARED, best_of, require  # sets the environment first
 
 import numpy as np
 
@@ -24,16 +21,7 @@ from lightprobe.envmap import EnvMap, read_envmap, resample
 from lightprobe.io import read_image
 from lightprobe.layouts import CUBE, LATLONG
 
-SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
-
-def best_of(fn, repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return min(times)
 
 
 def numpy_pass(pixels: np.ndarray):
@@ -59,8 +47,7 @@ def main() -> int:
     parser.add_argument("--repeat", type=int, default=3)
     args = parser.parse_args()
     probe = SHARED / "polyhaven_1k" / "rooitou_park_1k.hdr"
-    if not probe.is_file():
-        print(f"benchmark data {probe} not found (../shared/data beside the project)", file=sys.stderr)
+    if not require(probe):
         return 2
 
     rows = []

@@ -29,10 +29,12 @@ class _Parser(argparse.ArgumentParser):
         raise LightprobeError(f"{message} (see '{self.prog} --help')")
 
 
-def _add_probe(p: argparse.ArgumentParser, name: str = "file", help_text: str | None = None) -> None:
+def _add_probe(p: argparse.ArgumentParser, name: str = "file", help_text: str | None = None,
+               layout_flag: str = "--layout") -> None:
     p.add_argument(name, nargs="?", type=Path,
                    help=help_text or "HDR environment map (.hdr, .exr, .pfm, .png, …); omitted: the shipped probe")
-    p.add_argument("--layout", "-l", choices=LAYOUT_NAMES,
+    flags = (layout_flag, "-l") if layout_flag == "--layout" else (layout_flag,)
+    p.add_argument(*flags, dest="layout", choices=LAYOUT_NAMES,
                    help="layout of the input; default: from its aspect ratio (2:1 latlong, 1:1 angular, 3:4 cross, "
                         "4:3 hcross, 6:1 cube strip)")
 
@@ -118,6 +120,223 @@ def run_convert(args) -> None:
     print(f"wrote {args.dst} ({args.to}, size {out.size})")
 
 
+
+# ---- sh -----------------------------------------------------------------------------------------------------------
+FRAME_NAMES = ("world", "rh2001", "threejs", "filament", "gltf", "unity", "babylon")
+WINDOW_NAMES = ("none", "hanning", "lanczos", "auto")
+
+
+def _write_text(path: Path, text: str) -> None:
+    from .io import atomic_path
+
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+
+
+def register_sh(sub) -> None:
+    p = sub.add_parser("sh", help="spherical-harmonic coefficients of the lighting (paper Figure 2)",
+                       description="Radiance SH coefficients L_lm (real SH without Condon-Shortley phase, flat "
+                                   "order l(l+1)+m) of a map, in a chosen frame.")
+    _add_probe(p)
+    p.add_argument("--order", type=int, default=2, help="l_max (default 2: nine coefficients)")
+    p.add_argument("--frame", choices=FRAME_NAMES, default="world",
+                   help="frame of the coefficients (rh2001: the paper's; world: +Y up, front -Z)")
+    p.add_argument("--window", choices=WINDOW_NAMES, default="none", help="de-ringing window")
+    p.add_argument("--format", choices=("json", "csv", "npy"), default="json")
+    p.add_argument("--json", dest="format", action="store_const", const="json", help="same as --format json")
+    p.add_argument("--output", "-o", type=Path, help="write to a file instead of stdout (needed for npy)")
+    p.set_defaults(run=run_sh)
+
+
+def run_sh(args) -> None:
+    import numpy as np
+
+    from .sh import name, project
+
+    if not 0 <= args.order <= 64:
+        raise LightprobeError(f"--order must be between 0 and 64, got {args.order}")
+    sh = project(_load(args.file, args.layout), args.order, args.frame).windowed(args.window)
+    if args.format == "npy":
+        if not args.output:
+            raise LightprobeError("--format npy needs --output FILE")
+        from .io import atomic_path
+
+        with atomic_path(args.output) as tmp, open(tmp, "wb") as f:
+            np.save(f, sh.coeffs)
+        return
+    if args.format == "csv":
+        from .sh import degree_order
+
+        rows = ["name,l,m,R,G,B"] + [f"{name(i)},{degree_order(i)[0]},{degree_order(i)[1]},"
+                                     + ",".join(f"{v:.9g}" for v in row) for i, row in enumerate(sh.coeffs)]
+        text = "\n".join(rows) + "\n"
+    else:
+        text = json.dumps({"file": str(args.file or "(shipped probe)"), "frame": sh.frame.name, "order": sh.l_max,
+                           "quantity": sh.quantity, "window": sh.window,
+                           "basis": "real SH, no Condon-Shortley phase, flat index l(l+1)+m",
+                           "names": [name(i) for i in range(len(sh.coeffs))],
+                           "coefficients": sh.as_list()}) + "\n"
+    if args.output:
+        _write_text(args.output, text)
+    else:
+        sys.stdout.write(text)
+
+
+# ---- irradiance ---------------------------------------------------------------------------------------------------
+def parse_size(text: str, layout) -> int:
+    """'N' (the layout's size: height, or face edge for cube layouts) or 'WxH' (the image file's width × height)."""
+    try:
+        if "x" not in text.lower():
+            size = int(text)
+        else:
+            w, h = (int(v) for v in text.lower().split("x"))
+            size = h // layout.aspect[1] if layout.faces == 1 else h
+            expected = (6 * size, size) if layout.faces == 6 else layout.grid_shape(max(size, 1))[::-1]
+            if (w, h) != tuple(expected):
+                raise LightprobeError(f"--size {text} does not fit the {layout.name} layout "
+                                      f"(an image {expected[0]}x{expected[1]} would)")
+    except ValueError:
+        raise LightprobeError(f"--size wants N or WxH, got {text!r}") from None
+    if size < 1:
+        raise LightprobeError(f"--size must be positive, got {text!r}")
+    return size
+
+
+def register_irradiance(sub) -> None:
+    p = sub.add_parser("irradiance", help="irradiance map (SH or brute force)",
+                       description="Irradiance E (not divided by pi) for every texel direction taken as a surface "
+                                   "normal, by SH (fast) or by brute-force integration of the whole map (exact).")
+    _add_probe(p, layout_flag="--in-layout")
+    p.add_argument("--output", "-o", type=Path, required=True, help="output image (.exr, .hdr, .pfm, .png)")
+    p.add_argument("--layout", dest="out_layout", choices=LAYOUT_NAMES, default="latlong", help="output layout")
+    p.add_argument("--size", default="64x32", help="N or WxH of the output (default 64x32)")
+    p.add_argument("--order", type=int, default=2, help="SH order l_max for --method sh")
+    p.add_argument("--method", choices=("sh", "brute"), default="sh")
+    p.add_argument("--window", choices=WINDOW_NAMES, default="none", help="de-ringing window for --method sh")
+    p.set_defaults(run=run_irradiance)
+
+
+def run_irradiance(args) -> None:
+    from .envmap import check_size
+    from .irradiance import irradiance_map
+    from .layouts import layout as layout_named
+
+    lay = layout_named(args.out_layout)
+    size = parse_size(args.size, lay)
+    check_size(lay, size)
+    env = _load(args.file, args.layout)
+    out = irradiance_map(env, lay, size, args.method, args.order, args.window)
+    out.to_envmap_image().save(args.output)
+    print(f"wrote {args.output} (irradiance, {args.method}, {lay.name} size {size})")
+
+
+# ---- error --------------------------------------------------------------------------------------------------------
+def register_error(sub) -> None:
+    p = sub.add_parser("error", help="SH irradiance error against brute force",
+                       description="Both error measures of SPEC 3 on luminance over uniformly spread normals: the "
+                                   "paper's |E - E_ref| / (integral of L) and the per-normal |E - E_ref| / E_ref.")
+    _add_probe(p)
+    p.add_argument("--order", default="2", help="l_max, or a list such as 2,4,6")
+    p.add_argument("--window", choices=WINDOW_NAMES + ("all",), default="all",
+                   help="de-ringing window (default: every window, to show what each costs)")
+    p.add_argument("--normals", type=int, default=2000, help="number of test normals")
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(run=run_error)
+
+
+def run_error(args) -> None:
+    from dataclasses import asdict
+
+    from .irradiance import brute_irradiance, error_report, reference_normals
+    from .sh import project
+
+    try:
+        orders = [int(v) for v in args.order.split(",")]
+    except ValueError:
+        raise LightprobeError(f"--order wants numbers such as 2 or 2,4,6, got {args.order!r}") from None
+    if not all(0 <= o <= 32 for o in orders) or not 16 <= args.normals <= 200000:
+        raise LightprobeError("--order must be within 0..32 and --normals within 16..200000")
+    env = _load(args.file, args.layout)
+    normals = reference_normals(args.normals)
+    reference = brute_irradiance(env, normals)
+    sh = project(env, max(orders))
+    windows = WINDOW_NAMES if args.window == "all" else (args.window,)
+    reports = [error_report(env, o, w, normals, reference, sh) for o in orders for w in windows]
+    if args.json:
+        print(json.dumps([asdict(r) for r in reports]))
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title=f"SH irradiance vs brute force, {args.normals} normals, luminance")
+    for col in ("order", "window", "paper mean", "paper max", "relative mean", "relative max", "E < 0"):
+        table.add_column(col, justify="right")
+    for r in reports:
+        table.add_row(str(r.l_max), r.window, f"{100 * r.paper_mean:.2f} %", f"{100 * r.paper_max:.2f} %",
+                      f"{100 * r.relative_mean:.1f} %", f"{100 * r.relative_max:.1f} %",
+                      f"{100 * r.negative_fraction:.1f} %")
+    Console().print(table)
+
+
+# ---- export -------------------------------------------------------------------------------------------------------
+def register_export(sub) -> None:
+    from .export import GLTF_SCALINGS, TARGETS
+
+    p = sub.add_parser("export", help="SH irradiance for engines (three.js, Filament, Unity, glTF, Babylon, GLSL)",
+                       description="Nine SH coefficients converted to an engine's frame, sign convention and "
+                                   "scaling (see the README's table).")
+    _add_probe(p)
+    p.add_argument("--to", "-t", required=True, choices=TARGETS)
+    p.add_argument("--output", "-o", type=Path, required=True)
+    p.add_argument("--frame", choices=FRAME_NAMES, help="override the target's own frame")
+    p.add_argument("--gltf-scaling", choices=GLTF_SCALINGS, default="babylon",
+                   help="glTF irradianceCoefficients: pi*L_lm as Babylon.js reads them, or literal irradiance")
+    p.add_argument("--window", choices=WINDOW_NAMES, default="none", help="de-ringing window")
+    p.set_defaults(run=run_export)
+
+
+def run_export(args) -> None:
+    from .export import export
+    from .sh import project
+
+    sh = project(_load(args.file, args.layout), 2).windowed(args.window)
+    text = export(sh, args.to, args.frame, args.gltf_scaling, csharp=args.output.suffix.lower() == ".cs")
+    _write_text(args.output, text)
+    print(f"wrote {args.output} ({args.to})")
+
+
+# ---- design -------------------------------------------------------------------------------------------------------
+def register_design(sub) -> None:
+    p = sub.add_parser("design", help="edit SH lighting and see it on spheres (paper Figure 4)",
+                       description="Edit radiance SH coefficients (world frame) and render the nine basis "
+                                   "functions and the original and edited lighting on white spheres, front and back.")
+    _add_probe(p)
+    p.add_argument("--output", "-o", type=Path, required=True, help="PNG picture")
+    p.add_argument("--set", dest="sets", action="append", default=[], metavar="Llm=V",
+                   help="set a coefficient, e.g. L1-1=-0.4 or L20=0.1,0.2,0.3 (repeatable)")
+    p.add_argument("--scale-band", dest="scales", action="append", default=[], metavar="L=F",
+                   help="multiply band L by F, e.g. 2=0.5 (repeatable)")
+    p.add_argument("--size", type=int, default=128, help="sphere size in pixels")
+    p.add_argument("--json", type=Path, help="also write the edited coefficients (lightprobe JSON)")
+    p.set_defaults(run=run_design)
+
+
+def run_design(args) -> None:
+    from .design import design_figure, edit
+    from .export import export_json
+    from .io import write_image
+    from .sh import project
+
+    if not 16 <= args.size <= 1024:
+        raise LightprobeError(f"--size must be within 16..1024, got {args.size}")
+    original = project(_load(args.file, args.layout), 2)
+    edited = edit(original, args.sets, args.scales)
+    write_image(args.output, design_figure(original, edited, args.size), encoded=True)
+    if args.json:
+        _write_text(args.json, export_json(edited))
+    print(f"wrote {args.output}")
+
+
 # ---- demo ---------------------------------------------------------------------------------------------------------
 def register_demo(sub) -> None:
     p = sub.add_parser("demo", help="the main job: run everything on a probe, write an HTML report",
@@ -135,7 +354,8 @@ def run_demo(args) -> None:
     print(f"report: {index}")
 
 
-COMMANDS = [register_info, register_convert, register_demo]
+COMMANDS = [register_info, register_convert, register_sh, register_irradiance, register_error, register_export,
+            register_design, register_demo]
 
 
 def build_parser() -> argparse.ArgumentParser:

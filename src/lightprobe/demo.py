@@ -13,10 +13,14 @@ from pathlib import Path
 
 import numpy as np
 
+from .design import design_figure, edit
 from .envmap import EnvMap, to_image
+from .export import TARGETS, export
 from .io import atomic_path, write_image
+from .irradiance import brute_irradiance, error_report, irradiance_map, reference_normals
 from .layouts import LAYOUTS
-from .tonemap import auto_exposure
+from .sh import SHCoeffs, name, project
+from .tonemap import auto_exposure, heatmap
 
 
 @dataclass
@@ -28,14 +32,34 @@ class Report:
     probe_name: str
     exposure: float = 0.0
     timings: dict[str, float] = field(default_factory=dict)
+    shared: dict = field(default_factory=dict)  # results later sections reuse (SH coefficients, references)
+
+    def sh(self, l_max: int = 6) -> SHCoeffs:
+        """Radiance SH of the probe up to ``l_max`` (computed once)."""
+        if self.shared.get("sh") is None or self.shared["sh"].l_max < l_max:
+            t0 = time.perf_counter()
+            self.shared["sh"] = project(self.env, l_max)
+            self.timings[f"SH projection, order {l_max}"] = time.perf_counter() - t0
+        return self.shared["sh"].truncated(l_max)
+
+    def display_picture(self, name: str, display: np.ndarray, caption: str, width: int | None = None) -> str:
+        """Save display-encoded RGB as ``name``.png and return an HTML figure."""
+        write_image(self.out / f"{name}.png", display, encoded=True)
+        return figure(name, caption, width)
 
     def picture(self, name: str, rgb: np.ndarray, caption: str, exposure: float | None = None,
-                curve: str = "aces") -> str:
-        """Save linear RGB as ``name``.png (tone-mapped) and return an HTML figure for it."""
+                curve: str = "aces", width: int | None = None) -> str:
+        """Save linear RGB as ``name``.png (tone-mapped) and return an HTML figure for it (``width`` in CSS px)."""
         write_image(self.out / f"{name}.png", rgb, exposure=self.exposure if exposure is None else exposure,
                     curve=curve)
-        return (f'<figure><img src="{name}.png" alt="{html.escape(caption)}">'
-                f"<figcaption>{html.escape(caption)}</figcaption></figure>")
+        return figure(name, caption, width)
+
+
+def figure(name: str, caption: str, width: int | None = None) -> str:
+    """An HTML figure for ``name``.png; small pictures are shown enlarged (pixelated, so nothing is invented)."""
+    style = f' style="width:{width}px;max-height:none;image-rendering:pixelated"' if width else ""
+    return (f'<figure><img src="{name}.png" alt="{html.escape(caption)}"{style}>'
+            f"<figcaption>{html.escape(caption)}</figcaption></figure>")
 
 
 def table(header: list[str], rows: list[list], fmt: str = "{:.6g}") -> str:
@@ -62,15 +86,15 @@ def section_layouts(rep: Report) -> str:
     """The probe in every layout, with ∫L dω after each conversion (it must not change)."""
     base = rep.env.integral()
     figures, rows = [], []
-    for name, lay in LAYOUTS.items():
-        size = 256 if name in ("latlong", "angular", "sphere") else 128
+    for lay_name, lay in LAYOUTS.items():
+        size = 256 if lay_name in ("latlong", "angular", "sphere") else 128
         t0 = time.perf_counter()
         converted = rep.env.to(lay, size)
-        rep.timings[f"convert to {name} {size}"] = time.perf_counter() - t0
+        seconds = rep.timings[f"convert to {lay_name} {size}"] = time.perf_counter() - t0
         change = converted.integral() / base - 1
-        rows.append([name, size, "×".join(map(str, converted.grid)), *(f"{100 * c:+.3f} %" for c in change),
-                     f"{1000 * rep.timings[f'convert to {name} {size}']:.0f} ms"])
-        figures.append(rep.picture(f"layout_{name}", to_image(converted), f"{name} ({converted.size})"))
+        rows.append([lay_name, size, "×".join(map(str, converted.grid)), *(f"{100 * c:+.3f} %" for c in change),
+                     f"{1000 * seconds:.0f} ms"])
+        figures.append(rep.picture(f"layout_{lay_name}", to_image(converted), f"{lay_name} ({converted.size})"))
     return ("<h2>Every layout</h2><p>The probe converted into each layout by footprint-aware resampling. The same "
             "direction is at the same place of the sphere in every picture: no mirror, no rotation slips in. "
             "The table gives the change of ∫L dω per channel (the issue's bound is 0.5 %).</p>"
@@ -78,7 +102,114 @@ def section_layouts(rep: Report) -> str:
             + table(["layout", "size", "grid", "ΔR", "ΔG", "ΔB", "time"], rows))
 
 
-SECTIONS = [section_probe, section_layouts]
+def section_sh(rep: Report) -> str:
+    """The nine coefficients in the world frame and in the paper's frame."""
+    world = rep.sh(2)
+    paper = world.to_frame("rh2001")
+    rows = [[name(i), *(f"{v:+.4f}" for v in world.coeffs[i]), *(f"{v:+.4f}" for v in paper.coeffs[i])]
+            for i in range(9)]
+    return ("<h2>Spherical harmonics (Ramamoorthi &amp; Hanrahan 2001)</h2>"
+            "<p>Radiance coefficients L<sub>lm</sub> (real SH without Condon–Shortley phase, flat order l(l+1)+m). "
+            "World frame: +Y up, front −Z; <code>rh2001</code> is the paper's frame (z negated), in which its "
+            "Figure 2 is printed — the test suite reproduces that figure for all five Debevec files to 0.01.</p>"
+            + table(["coefficient", "R world", "G world", "B world", "R rh2001", "G rh2001", "B rh2001"], rows))
+
+
+def section_irradiance(rep: Report) -> str:
+    """SH against brute-force irradiance maps, with the error where a person sees it."""
+    size = 64
+    t0 = time.perf_counter()
+    brute = irradiance_map(rep.env, "latlong", size, "brute")
+    t_brute = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    sh9 = irradiance_map(rep.env, "latlong", size, "sh", 2, sh=rep.sh(2))
+    t_sh = time.perf_counter() - t0
+    auto = irradiance_map(rep.env, "latlong", size, "sh", 2, "auto", sh=rep.sh(2))
+    auto_label = rep.sh(2).windowed("auto").window
+    rep.timings["irradiance map 128×64, brute force"] = t_brute
+    rep.timings["irradiance map 128×64, SH9"] = t_sh
+    exposure = auto_exposure(brute.data)
+
+    def rel_error(m):
+        from .tonemap import luminance
+
+        return np.abs(luminance(m.data) - luminance(brute.data)) / np.maximum(luminance(brute.data), 1e-9)
+
+    figures = [
+        rep.picture("irr_brute", brute.data, "brute force (exact)", exposure, width=320),
+        rep.picture("irr_sh9", sh9.data, "SH, 9 coefficients", exposure, width=320),
+        rep.display_picture("irr_sh9_error", heatmap(rel_error(sh9), 1.0),
+                            "|E_SH − E| / E, black 0 → white ≥ 100 %", width=320),
+        rep.picture("irr_sh9_auto", auto.data, f"SH, 9 coefficients, {auto_label}", exposure, width=320),
+        rep.display_picture("irr_auto_error", heatmap(rel_error(auto), 1.0),
+                            "relative error with the auto window (same scale)", width=320),
+    ]
+    negative = float((sh9.data < 0).any(axis=-1).mean())
+    return ("<h2>Irradiance maps: SH against brute force</h2>"
+            f"<p>Irradiance E(n) for every normal of a 128×64 lat-long map. Brute force integrates all "
+            f"{rep.env.valid_mask().sum()} pixels for each normal ({t_brute:.2f} s); SH9 evaluates nine terms "
+            f"({1000 * t_sh:.1f} ms, {t_brute / max(t_sh, 1e-9):.0f}× faster). The heat maps show the relative "
+            f"error a person sees: small in the bright half, large on the dark side opposite the sun, where SH9 "
+            f"rings (negative irradiance in some channel on {100 * negative:.1f} % of the map without a window; "
+            f"the auto window removes it at the price of blur).</p>"
+            '<div class="grid">' + "".join(figures) + "</div>")
+
+
+def section_errors(rep: Report) -> str:
+    """Both error measures for orders 2, 4, 6 and every window."""
+    normals = reference_normals(1500)
+    t0 = time.perf_counter()
+    reference = brute_irradiance(rep.env, normals)
+    rep.timings["brute-force reference, 1500 normals"] = time.perf_counter() - t0
+    sh = rep.sh(6)
+    rows = []
+    for l_max in (2, 4, 6):
+        for window in ("none", "hanning", "lanczos", "auto"):
+            r = error_report(rep.env, l_max, window, normals, reference, sh)
+            rows.append([l_max, r.window, f"{100 * r.paper_mean:.2f} %", f"{100 * r.paper_max:.2f} %",
+                         f"{100 * r.relative_mean:.1f} %", f"{100 * r.relative_max:.1f} %",
+                         f"{100 * r.negative_fraction:.1f} %"])
+    return ("<h2>How wrong is SH irradiance?</h2>"
+            "<p>Luminance over 1500 uniformly spread normals against the brute-force reference. <em>Paper</em>: "
+            "|E − E<sub>ref</sub>| as a fraction of ∫L dω (the measure of the paper: under 1 % mean, 5 % max on "
+            "Debevec's probes). <em>Relative</em>: |E − E<sub>ref</sub>| / E<sub>ref</sub> per normal, the error "
+            "on the dark side. Windows trade accuracy for freedom from ringing; <code>auto</code> takes the "
+            "widest window that keeps irradiance non-negative.</p>"
+            + table(["order", "window", "paper mean", "paper max", "relative mean", "relative max", "E < 0"], rows))
+
+
+def section_design(rep: Report) -> str:
+    """Paper §3.3 / Figure 4: the basis functions and an edit."""
+    original = rep.sh(2)
+    edited = edit(original, [], ["1=0.3"])
+    figure = rep.display_picture("design", design_figure(original, edited, 96),
+                                 "SH basis functions (orange +, blue −); lighting on white spheres before and "
+                                 "after scaling band 1 by 0.3")
+    return ("<h2>Lighting design</h2><p>Editing the nine numbers edits the lighting (paper §3.3): here band 1, "
+            "the directional part, is scaled by 0.3, so the spheres' bright and dark sides even out. "
+            "<code>lightprobe design --set L1-1=-0.4 --scale-band 2=0.5 -o out.png</code> does the same from the "
+            "command line.</p>" + figure)
+
+
+def section_exports(rep: Report) -> str:
+    """The nine coefficients for every engine, written next to the report."""
+    folder = rep.out / "exports"
+    folder.mkdir(exist_ok=True)
+    suffix = {"json": "json", "threejs": "json", "filament": "txt", "unity": "cs", "gltf": "json",
+              "babylon": "json", "glsl": "glsl"}
+    links = []
+    for target in TARGETS:
+        path = folder / f"{target}.{suffix[target]}"
+        with atomic_path(path) as tmp:
+            tmp.write_text(export(rep.sh(2), target, csharp=suffix[target] == "cs"), encoding="utf-8")
+        links.append(f'<li><a href="exports/{path.name}">{target}</a></li>')
+    return ("<h2>Exports</h2><p>The same nine coefficients converted to each engine's frame, sign convention and "
+            "scaling (each checked in the test suite with that engine's own reconstruction formula against a "
+            "white furnace and an analytic point light):</p><ul>" + "".join(links) + "</ul>")
+
+
+SECTIONS = [section_probe, section_layouts, section_sh, section_irradiance, section_errors, section_design,
+            section_exports]
 
 _STYLE = """body{font:15px/1.45 system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}
 h1{font-size:1.6em}h2{margin-top:2em;border-bottom:1px solid #ccc}table{border-collapse:collapse;margin:1em 0}
@@ -96,8 +227,10 @@ def run_demo(env: EnvMap, out: Path, probe_name: str | None = None) -> Path:
                  exposure=auto_exposure(env.data, env.solid_angles()))
     t0 = time.perf_counter()
     body = "".join(section(rep) for section in SECTIONS)
+    timings = table(["step", "time"], [[k, f"{1000 * v:.1f} ms"] for k, v in rep.timings.items()])
     page = (f"<!doctype html><html><head><meta charset='utf-8'><title>lightprobe report</title>"
             f"<style>{_STYLE}</style></head><body><h1>lightprobe report</h1>{body}"
+            f"<h2>Timings</h2>{timings}"
             f"<p><small>Made in {time.perf_counter() - t0:.1f} s.</small></p></body></html>")
     index = out / "index.html"
     with atomic_path(index) as tmp:

@@ -11,6 +11,7 @@ import math
 import os
 import warnings
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -50,15 +51,15 @@ class EnvMap:
         return self.layout.size_of(self.grid)
 
     def directions(self) -> np.ndarray:
-        """World direction of every pixel centre, ``grid + (3,)``."""
-        return self.layout.directions(self.grid)
+        """World direction of every pixel centre, ``grid + (3,)`` (read-only; shared by maps of the same grid)."""
+        return pixel_geometry(self.layout, self.grid)[0]
 
     def solid_angles(self) -> np.ndarray:
-        """Exact solid angle of every pixel (sr), shape ``grid``; sums to 4π."""
-        return self.layout.solid_angles(self.grid)
+        """Exact solid angle of every pixel (sr), shape ``grid``; sums to 4π (read-only, shared)."""
+        return pixel_geometry(self.layout, self.grid)[1]
 
     def valid_mask(self) -> np.ndarray:
-        return self.layout.valid_mask(self.grid)
+        return pixel_geometry(self.layout, self.grid)[1] > 0
 
     # ---- quantities --------------------------------------------------------------------------------------------
     def integral(self) -> np.ndarray:
@@ -105,6 +106,16 @@ class EnvMap:
     def save(self, path: str | os.PathLike, **kwargs) -> Path:
         """Write to an image file (cube maps as a 6N × N strip); keyword arguments go to :func:`write_image`."""
         return write_image(path, to_image(self), **kwargs)
+
+
+@lru_cache(maxsize=4)
+def pixel_geometry(lay: Layout, grid: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """(directions, solid angles) of a layout's pixel grid, computed once per grid like a renderer's lookup
+    tables; read-only so that no caller can corrupt them for the next."""
+    d, omega = lay.directions(grid), lay.solid_angles(grid)
+    d.setflags(write=False)
+    omega.setflags(write=False)
+    return d, omega
 
 
 # ---- files ------------------------------------------------------------------------------------------------------

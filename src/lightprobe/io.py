@@ -154,10 +154,12 @@ def write_image(
     half: bool = False,
     exposure: float = 0.0,
     curve: str = "srgb",
+    encoded: bool = False,
 ) -> Path:
     """Write linear RGB (H, W, 3) to ``path``; the extension picks the format (see the module docstring).
 
-    HDR formats store the values as given (``exposure``/``curve`` apply only to ``.png``/``.jpg``). Returns the path.
+    HDR formats store the values as given (``exposure``/``curve`` apply only to ``.png``/``.jpg``; ``encoded``
+    says the values are display-encoded already, to be written to 8 bits as they are). Returns the path.
     """
     path = Path(path)
     ext = path.suffix.lower()
@@ -173,7 +175,8 @@ def write_image(
             f"({HALF_MAX:g}) and would become infinite; write float32 instead"
         )
     if ext in LDR_WRITE_FORMATS:
-        pixels, pixel_type = to_uint8(tonemap(rgb, exposure, curve)), "uint8"
+        display = np.clip(np.nan_to_num(rgb), 0, 1) if encoded else tonemap(rgb, exposure, curve)
+        pixels, pixel_type = to_uint8(display), "uint8"
     else:
         pixels, pixel_type = np.ascontiguousarray(rgb), ("half" if half and ext == ".exr" else "float")
     spec = oiio.ImageSpec(w, h, 3, pixel_type)

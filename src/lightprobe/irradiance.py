@@ -129,7 +129,7 @@ class ErrorReport:
     paper_max: float
     relative_mean: float  # |E − E_ref| / E_ref (per normal)
     relative_max: float
-    negative_fraction: float  # share of normals where the SH irradiance is negative (ringing)
+    negative_fraction: float  # share of normals where the SH irradiance is negative in any channel (ringing)
 
 
 def reference_normals(count: int = 2000) -> np.ndarray:
@@ -146,9 +146,10 @@ def error_report(env: EnvMap, l_max: int = 2, window: str = "none", normals: np.
     normals = reference_normals() if normals is None else normals
     e_ref = luminance(brute_irradiance(env, normals) if reference is None else reference)
     coeffs = (sh or project(env, l_max)).truncated(l_max).windowed(window)
-    e_sh = luminance(coeffs.to_irradiance().evaluate(normals))
+    e_sh_rgb = coeffs.to_irradiance().evaluate(normals)
+    e_sh = luminance(e_sh_rgb)
     total = float(luminance(env.integral()))
     diff = np.abs(e_sh - e_ref)
     rel = diff / np.maximum(e_ref, 1e-12 * total)
     return ErrorReport(l_max, coeffs.window, float(diff.mean() / total), float(diff.max() / total),
-                       float(rel.mean()), float(rel.max()), float(np.mean(e_sh < 0)))
+                       float(rel.mean()), float(rel.max()), float(np.mean((e_sh_rgb < 0).any(axis=-1))))

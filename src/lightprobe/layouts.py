@@ -183,10 +183,13 @@ class LatLong(Layout):
 
     def solid_angles(self, grid):
         self.check_grid(grid)
+        return np.broadcast_to(self.row_solid_angles(grid)[:, None], grid).copy()
+
+    def row_solid_angles(self, grid) -> np.ndarray:
+        """Solid angle of one pixel of each row (all pixels of a row are equal): (2π/W)(cos θ_top − cos θ_bottom)."""
         h, w = grid
         cos_edges = np.cos(np.pi * np.arange(h + 1) / h)
-        band = (2 * np.pi / w) * (cos_edges[:-1] - cos_edges[1:])
-        return np.broadcast_to(band[:, None], grid).copy()
+        return (2 * np.pi / w) * (cos_edges[:-1] - cos_edges[1:])
 
     def valid_mask(self, grid):
         return np.ones(grid, dtype=bool)
@@ -287,9 +290,10 @@ class Angular(_DiscLayout):
         d = np.asarray(d, dtype=np.float64)
         r = np.arccos(np.clip(-d[..., 2], -1.0, 1.0)) / np.pi
         rho = np.hypot(d[..., 0], d[..., 1])
-        scale = np.where(rho > 0, r / np.where(rho > 0, rho, 1.0), 0.0)
+        off_axis = rho > 1e-150  # closer to ±Z than that, r/ρ overflows (and the pixel is the same)
+        scale = np.where(off_axis, r / np.where(off_axis, rho, 1.0), 0.0)
         # straight behind (+Z) is the whole rim: take its right-hand point
-        a = np.where(rho > 0, d[..., 0] * scale, r)
+        a = np.where(off_axis, d[..., 0] * scale, r)
         b = d[..., 1] * scale
         return np.zeros(d.shape[:-1], dtype=np.int64), (a + 1) / 2, (1 - b) / 2
 

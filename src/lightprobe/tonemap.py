@@ -60,3 +60,17 @@ def auto_exposure(radiance: np.ndarray, weights: np.ndarray | None = None, key: 
 def luminance(rgb: np.ndarray) -> np.ndarray:
     """Rec. 709 luminance 0.2126 R + 0.7152 G + 0.0722 B of linear RGB (..., 3)."""
     return np.asarray(rgb)[..., :3] @ np.array([0.2126, 0.7152, 0.0722], dtype=np.asarray(rgb).dtype)
+
+
+# An inferno-like ramp (black → purple → red → orange → pale yellow), display-encoded, for error heat maps.
+_HEAT_STOPS = np.array([[0.0, 0.0, 0.02], [0.34, 0.06, 0.43], [0.73, 0.21, 0.33], [0.98, 0.55, 0.04],
+                        [0.99, 1.0, 0.64]], dtype=np.float32)
+
+
+def heatmap(values: np.ndarray, vmax: float) -> np.ndarray:
+    """Scalar values in [0, vmax] → display-encoded RGB (..., 3) on an inferno-like ramp; NaN shows as grey."""
+    t = np.clip(np.nan_to_num(np.asarray(values, dtype=np.float32) / vmax, nan=0.0), 0, 1) * (len(_HEAT_STOPS) - 1)
+    i = np.minimum(t.astype(int), len(_HEAT_STOPS) - 2)
+    f = (t - i)[..., None]
+    rgb = _HEAT_STOPS[i] * (1 - f) + _HEAT_STOPS[i + 1] * f
+    return np.where(np.isnan(np.asarray(values, dtype=np.float32))[..., None], 0.5, rgb).astype(np.float32)
