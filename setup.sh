@@ -1,23 +1,37 @@
 #!/usr/bin/env bash
 # Set up .venv in the repository root with everything lightprobe needs; running it again is harmless.
-#   bash setup.sh          the package and its runtime dependencies
-#   bash setup.sh --test   plus the test and reference-rendering dependencies
+#   bash setup.sh          the package with the Mitsuba 3 reference renderer (the demo shows its ground truth)
+#   bash setup.sh --test   plus the test dependencies
+# Both try Debian's libllvm19 for Mitsuba's fast LLVM variant (without it the reference uses the slower scalar one).
 # Installs Debian packages with apt-get when something needed is missing (as root, or through sudo).
 set -euo pipefail
 cd "$(dirname "$0")"
 
-extras=""
-[ "${1:-}" = "--test" ] && extras="[test]"
+extras="[reference]"
+[ "${1:-}" = "--test" ] && extras="[test,reference]"
 
 python3 -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else 1)' || {
   echo "setup.sh: lightprobe needs Python 3.11 or newer as python3" >&2; exit 2; }
 
-apt_packages=()
-python3 -c 'import venv, ensurepip' 2>/dev/null || apt_packages+=(python3-venv)
-if [ ${#apt_packages[@]} -gt 0 ]; then
-  sudo=""; [ "$(id -u)" = 0 ] || sudo="sudo"
-  $sudo apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "${apt_packages[@]}"
+sudo=""; [ "$(id -u)" = 0 ] || sudo="sudo"
+apt_install() {  # apt_install required|optional PACKAGE...
+  local need=$1; shift
+  [ $# -gt 0 ] || return 0
+  if ! command -v apt-get >/dev/null; then
+    [ "$need" = optional ] && return 0
+    echo "setup.sh: please install $* (no apt-get here)" >&2; exit 2
+  fi
+  if ! { $sudo apt-get update -qq && DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "$@"; }; then
+    [ "$need" = optional ] || { echo "setup.sh: could not install $*" >&2; exit 2; }
+    echo "setup.sh: optional $* not installed; continuing" >&2
+  fi
+}
+
+required=()
+python3 -c 'import venv, ensurepip' 2>/dev/null || required+=(python3-venv)
+apt_install required "${required[@]}"
+if ! ls /usr/lib/*/libLLVM-19.so* /usr/lib/llvm-19/lib/libLLVM* >/dev/null 2>&1; then
+  apt_install optional libllvm19  # Mitsuba's fast LLVM variant; the reference falls back to scalar_rgb without it
 fi
 
 [ -x .venv/bin/python ] || python3 -m venv .venv

@@ -337,6 +337,107 @@ def run_design(args) -> None:
     print(f"wrote {args.output}")
 
 
+# ---- render -------------------------------------------------------------------------------------------------------
+def register_render(sub) -> None:
+    p = sub.add_parser("render", help="render a scene or a mesh under a probe (sh, brute, or the Mitsuba reference)",
+                       description="Render a scene file (.yaml/.json) or a mesh file (.obj, .ply, .glb, ...; placed on "
+                                   "a ground plane) under a probe. Output: .exr (linear radiance) or .png (tone-mapped).")
+    p.add_argument("scene", nargs="?", type=Path,
+                   help="scene (.yaml, .yml, .json) or mesh file; omitted: the built-in sphere-and-torus scene")
+    p.add_argument("--probe", type=Path, help="environment map (default: the scene's, else the shipped probe)")
+    p.add_argument("--method", "-m", choices=("sh", "brute", "reference"), default="sh")
+    p.add_argument("--output", "-o", type=Path, required=True)
+    p.add_argument("--size", help="image WxH (default: the scene's camera, 256x256 for meshes)")
+    p.add_argument("--spp", type=int, default=2,
+                   help="sh/brute: spp×spp samples per pixel (default 2); reference: samples per pixel (default 256)")
+    p.add_argument("--order", type=int, default=2, help="SH order l_max")
+    p.add_argument("--window", choices=WINDOW_NAMES, default="none", help="SH de-ringing window")
+    p.add_argument("--per-vertex", action="store_true", help="SH evaluated at vertices and interpolated")
+    p.add_argument("--gi", action="store_true", help="reference: full global illumination (default: direct only)")
+    p.add_argument("--exposure", type=float, default=0.0, help="exposure in stops for .png output")
+    p.set_defaults(run=run_render)
+
+
+def _scene_for(args):
+    from .data import default_probe_path
+    from .envmap import read_envmap
+    from .render.scene import Camera, builtin_scene, load_scene, mesh_scene
+
+    env = read_envmap(args.probe) if args.probe else None
+    path = args.scene
+    if path is None:
+        scene = builtin_scene(env or read_envmap(default_probe_path()))
+    elif path.suffix.lower() in (".yaml", ".yml", ".json"):
+        scene = load_scene(path, env)
+    else:
+        scene = mesh_scene(path, env or read_envmap(default_probe_path()))
+    if args.size:
+        try:
+            w, h = (int(v) for v in args.size.lower().split("x"))
+        except ValueError:
+            raise LightprobeError(f"--size wants WxH, got {args.size!r}") from None
+        c = scene.camera
+        scene = type(scene)(scene.meshes, Camera(c.eye, c.target, c.up, c.fov, w, h), scene.environment,
+                            scene.background, scene.name)
+    return scene
+
+
+def run_render(args) -> None:
+    from .render.methods import method
+    from .render.renderer import render
+
+    if args.output.suffix.lower() not in (".exr", ".hdr", ".pfm", ".png", ".jpg", ".jpeg"):
+        raise LightprobeError(f"cannot write {args.output}: use .exr, .hdr, .pfm, .png or .jpg")
+    scene = _scene_for(args)
+    if args.method == "reference":
+        from .render.reference import reference_render
+
+        spp = args.spp if args.spp != 2 else 256
+        result = reference_render(scene, spp, args.gi)
+    else:
+        if not 1 <= args.spp <= 16:
+            raise LightprobeError("--spp for sh and brute is per axis, within 1..16")
+        options = {"order": args.order, "per_vertex": args.per_vertex, "window": args.window} \
+            if args.method == "sh" else {}
+        result = render(scene, method(args.method, **options), args.spp)
+    from .io import write_image
+
+    write_image(args.output, result.image, exposure=args.exposure, curve="aces")
+    total = sum(result.seconds.values())
+    print(f"wrote {args.output} ({result.method}; {scene.camera.width}x{scene.camera.height}, {total:.2f} s)")
+
+
+# ---- compare ------------------------------------------------------------------------------------------------------
+def register_compare(sub) -> None:
+    p = sub.add_parser("compare", help="error of a rendering against a reference (relMSE, MARE, HDR-FLIP)",
+                       description="Relative MSE, mean absolute relative error and HDR-FLIP of TEST against REF "
+                                   "(linear HDR images of one size), and an error heat map.")
+    p.add_argument("test", type=Path)
+    p.add_argument("reference", type=Path)
+    p.add_argument("--heatmap", type=Path, help="write the relative-error heat map (PNG)")
+    p.add_argument("--flipmap", type=Path, help="write the FLIP error map (PNG)")
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(run=run_compare)
+
+
+def run_compare(args) -> None:
+    from .io import read_image, write_image
+    from .render.compare import compare, error_heatmap, hdr_flip
+    from .tonemap import heatmap
+
+    test, ref = read_image(args.test), read_image(args.reference)
+    metrics = compare(test, ref)
+    if args.heatmap:
+        write_image(args.heatmap, error_heatmap(test, ref), encoded=True)
+    if args.flipmap:
+        write_image(args.flipmap, heatmap(hdr_flip(test, ref)[1], 1.0), encoded=True)
+    if args.json:
+        print(json.dumps(metrics.as_dict()))
+    else:
+        print(f"relative MSE {metrics.relative_mse:.4g}   MARE {metrics.mare:.4g}   HDR-FLIP {metrics.flip:.4g}   "
+              f"({metrics.pixels} pixels)")
+
+
 # ---- demo ---------------------------------------------------------------------------------------------------------
 def register_demo(sub) -> None:
     p = sub.add_parser("demo", help="the main job: run everything on a probe, write an HTML report",
@@ -355,7 +456,7 @@ def run_demo(args) -> None:
 
 
 COMMANDS = [register_info, register_convert, register_sh, register_irradiance, register_error, register_export,
-            register_design, register_demo]
+            register_design, register_render, register_compare, register_demo]
 
 
 def build_parser() -> argparse.ArgumentParser:

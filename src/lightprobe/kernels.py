@@ -83,3 +83,37 @@ def gather(img: np.ndarray, valid: np.ndarray, face, x, y, kernel: str = "biline
     fn = gather_bspline if kernel == "bspline" else gather_bilinear
     fn(img, valid, face, xs, ys, out)
     return out.reshape(shape + (img.shape[-1],))
+
+
+@njit(cache=True, parallel=True, fastmath=True)
+def clamped_cosine_sums(normals, dirs_t, weights_t, out):  # pragma: no cover - compiled
+    """out[t] = Σ_s max(n_t · d_s, 0) w_s for every normal t: the brute-force irradiance sum, O(T·S).
+
+    ``dirs_t`` and ``weights_t`` are (3, S) float32 (structure of arrays, so the inner loop vectorises). Products
+    are float32; each block of 4096 terms is added into a float64 total, which keeps ~1e-7 relative accuracy."""
+    n_normals = normals.shape[0]
+    n_dirs = dirs_t.shape[1]
+    dx, dy, dz = dirs_t[0], dirs_t[1], dirs_t[2]
+    w0, w1, w2 = weights_t[0], weights_t[1], weights_t[2]
+    for t in prange(n_normals):
+        nx = np.float32(normals[t, 0])
+        ny = np.float32(normals[t, 1])
+        nz = np.float32(normals[t, 2])
+        total0 = 0.0
+        total1 = 0.0
+        total2 = 0.0
+        for start in range(0, n_dirs, 4096):
+            a0 = np.float32(0.0)
+            a1 = np.float32(0.0)
+            a2 = np.float32(0.0)
+            for s in range(start, min(start + 4096, n_dirs)):
+                c = max(nx * dx[s] + ny * dy[s] + nz * dz[s], np.float32(0.0))
+                a0 += c * w0[s]
+                a1 += c * w1[s]
+                a2 += c * w2[s]
+            total0 += a0
+            total1 += a1
+            total2 += a2
+        out[t, 0] = total0
+        out[t, 1] = total1
+        out[t, 2] = total2

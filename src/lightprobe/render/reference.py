@@ -1,0 +1,152 @@
+"""Ground truth: the same scene path-traced by Mitsuba 3 (optional extra ``reference``: ``pip install mitsuba``).
+
+Matching the project's renderer exactly:
+
+* **Camera**: the same look-at (eye, target, up) and vertical field of view (``fov_axis = y``); box pixel filter.
+* **Geometry**: every mesh written as a binary PLY with the renderer's own vertex normals, so both interpolate the
+  same shading normals; diffuse BSDFs wrapped in ``twosided`` (the renderer flips back faces the same way).
+* **Environment**: Mitsuba's ``envmap`` reads a lat-long image as u = atan2(x, −z)/2π, v = acos(y)/π (its image centre
+  is +Z), ours as u = atan2(x, −z)/2π + ½: the same mapping shifted by half a turn. The map is converted to lat-long
+  (if it is not one) and its columns rolled by W/2 — exact, a 180° turn about +Y, no mirror. A test proves it with a
+  single bright spot.
+* **Light transport**: direct lighting only by default (``path`` with max_depth 2: the papers' assumption, with
+  shadows); ``global_illumination=True`` for all bounces.
+
+Variant: ``llvm_ad_rgb`` (vectorised) when Debian's ``libllvm19`` is installed — Dr.Jit is pointed at it, because
+with an older LLVM (Debian 12 also ships 14 and 15) it aborts the process — otherwise ``scalar_rgb`` (needs
+nothing, slower).
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..envmap import EnvMap
+from ..errors import LightprobeError
+from ..io import write_image
+from ..layouts import LATLONG
+from .renderer import Rendering
+from .scene import MeshInstance, Scene
+
+LLVM_LIBRARIES = ("/usr/lib/x86_64-linux-gnu/libLLVM-19.so", "/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1",
+                  "/usr/lib/llvm-19/lib/libLLVM.so.1", "/usr/lib/llvm-19/lib/libLLVM-19.so",
+                  "/usr/lib/aarch64-linux-gnu/libLLVM-19.so")
+
+
+def llvm19() -> str | None:
+    """Path of an LLVM 19 shared library, if installed. Dr.Jit's LLVM backend crashes the process (an LLVM abort,
+    not an exception) with older LLVMs such as Debian's 15, so the LLVM variant is used only with this one."""
+    import os
+
+    explicit = os.environ.get("DRJIT_LIBLLVM_PATH")
+    if explicit:
+        return explicit
+    return next((p for p in LLVM_LIBRARIES if Path(p).exists()), None)
+
+
+def mitsuba(variant: str | None = None):
+    """The ``mitsuba`` module with an RGB variant set: ``llvm_ad_rgb`` (vectorised) when an LLVM 19 library is
+    there, ``scalar_rgb`` otherwise (or the ``variant`` asked for)."""
+    import os
+
+    library = llvm19()
+    if library:
+        os.environ.setdefault("DRJIT_LIBLLVM_PATH", library)
+    try:
+        import mitsuba as mi
+    except ImportError:
+        raise LightprobeError("the Mitsuba reference needs the optional extra: pip install 'lightprobe[reference]'"
+                              ) from None
+    name = variant or ("llvm_ad_rgb" if library else "scalar_rgb")
+    try:
+        mi.set_variant(name)
+    except Exception as e:
+        raise LightprobeError(f"Mitsuba variant {name} does not start: {str(e).splitlines()[0]}") from None
+    return mi
+
+
+def mitsuba_latlong(env: EnvMap) -> np.ndarray:
+    """The environment as the lat-long image Mitsuba's ``envmap`` expects (columns rolled by half a turn)."""
+    if env.layout is not LATLONG:
+        env = env.to(LATLONG)
+    return np.roll(env.data, env.grid[1] // 2, axis=1)
+
+
+def write_ply(path: Path, mesh: MeshInstance) -> None:
+    """Binary PLY with float32 positions and normals, int32 triangle indices."""
+    v = np.concatenate([mesh.vertices, mesh.normals], axis=1).astype("<f4")
+    f = np.empty(len(mesh.faces), dtype=[("n", "u1"), ("i", "<i4", (3,))])
+    f["n"], f["i"] = 3, mesh.faces
+    header = (f"ply\nformat binary_little_endian 1.0\nelement vertex {len(v)}\n"
+              "property float x\nproperty float y\nproperty float z\n"
+              "property float nx\nproperty float ny\nproperty float nz\n"
+              f"element face {len(f)}\nproperty list uchar int vertex_indices\nend_header\n")
+    path.write_bytes(header.encode("ascii") + v.tobytes() + f.tobytes())
+
+
+def scene_dict(mi, scene: Scene, folder: Path, spp: int, global_illumination: bool, seed: int) -> dict:
+    cam = scene.camera
+    env_path = folder / "environment.exr"
+    write_image(env_path, mitsuba_latlong(scene.environment))
+    d = {
+        "type": "scene",
+        "integrator": {"type": "path", "max_depth": -1 if global_illumination else 2,
+                       "hide_emitters": not scene.background},
+        "sensor": {
+            "type": "perspective", "fov": float(cam.fov), "fov_axis": "y",
+            "to_world": mi.ScalarTransform4f().look_at(origin=list(map(float, cam.eye)),
+                                                       target=list(map(float, cam.target)),
+                                                       up=list(map(float, cam.up))),
+            "film": {"type": "hdrfilm", "width": cam.width, "height": cam.height, "rfilter": {"type": "box"},
+                     "pixel_format": "rgb"},
+            "sampler": {"type": "independent", "sample_count": spp, "seed": seed},
+        },
+        "environment": {"type": "envmap", "filename": str(env_path)},
+    }
+    for i, mesh in enumerate(scene.meshes):
+        if mesh.material.texture is not None:
+            raise LightprobeError("the Mitsuba reference does not take textured materials yet; use albedo colours")
+        ply = folder / f"mesh{i}.ply"
+        write_ply(ply, mesh)
+        d[f"mesh{i}"] = {
+            "type": "ply", "filename": str(ply), "face_normals": False,
+            "bsdf": {"type": "twosided", "bsdf": {"type": "diffuse", "reflectance": {
+                "type": "rgb", "value": [float(x) for x in mesh.material.albedo]}}},
+        }
+    return d
+
+
+def reference_render(scene: Scene, spp: int = 64, global_illumination: bool = False, seed: int = 0,
+                     variant: str | None = None) -> Rendering:
+    """Path-trace ``scene`` with Mitsuba 3: radiance (H, W, 3), ``spp`` samples per pixel."""
+    if not 1 <= spp <= 1 << 16:
+        raise LightprobeError("reference samples per pixel must be within 1..65536")
+    mi = mitsuba(variant)
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="lightprobe-mitsuba-") as tmp:
+        loaded = mi.load_dict(scene_dict(mi, scene, Path(tmp), spp, global_illumination, seed))
+        t_load = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        image = np.array(mi.render(loaded, spp=spp, seed=seed), dtype=np.float32)[..., :3]
+    transport = "global illumination" if global_illumination else "direct lighting"
+    return Rendering(image, np.ones(image.shape[:2], np.float32),
+                     f"Mitsuba {mi.__version__} {mi.variant()}, {transport}, {spp} spp",
+                     {"load": t_load, "render": time.perf_counter() - t0})
+
+
+def reference_coverage(scene: Scene, spp: int = 64, seed: int = 0, variant: str | None = None) -> np.ndarray:
+    """Fraction of each pixel covered by geometry, as Mitsuba sees the scene: the box-filtered ``albedo`` AOV of
+    the scene with every material white. Compared with the renderer's coverage it proves camera and geometry
+    agree."""
+    mi = mitsuba(variant)
+    white = Scene(tuple(type(m)(m.vertices, m.faces, m.normals, type(m.material)((1.0, 1.0, 1.0)), m.uv, m.name)
+                        for m in scene.meshes), scene.camera, scene.environment, scene.background, scene.name)
+    with tempfile.TemporaryDirectory(prefix="lightprobe-mitsuba-") as tmp:
+        d = scene_dict(mi, white, Path(tmp), spp, False, seed)
+        d["integrator"] = {"type": "aov", "aovs": "a:albedo"}
+        image = np.array(mi.render(mi.load_dict(d), spp=spp, seed=seed), dtype=np.float32)
+    return image[..., -3:].mean(axis=-1)

@@ -1,0 +1,56 @@
+"""The project's renderer: primary rays through Embree, per-pixel shading by a pluggable lighting method.
+
+Output is linear RGB radiance (H, W, 3) float32 with a box filter over spp × spp stratified samples per pixel;
+pixels whose rays miss show the environment (bilinear lookup) when the scene's ``background`` is on, else 0.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .methods import Method
+from .raycast import Tracer
+from .scene import Scene
+
+
+@dataclass(frozen=True, eq=False)
+class Rendering:
+    """A rendered image with what made it: ``image`` radiance (H, W, 3), ``coverage`` the fraction of each pixel's
+    samples that hit geometry, ``seconds`` per stage."""
+
+    image: np.ndarray
+    coverage: np.ndarray
+    method: str
+    seconds: dict[str, float] = field(default_factory=dict)
+
+
+def render(scene: Scene, method: Method, spp: int = 1, tracer: Tracer | None = None) -> Rendering:
+    """Render ``scene`` lit by ``method``; ``spp`` is the per-axis supersampling (spp² samples per pixel)."""
+    if not 1 <= spp <= 16:
+        raise ValueError("spp must be within 1..16")
+    seconds = {}
+    t0 = time.perf_counter()
+    tracer = tracer or Tracer(scene)
+    cam = scene.camera
+    origins, dirs = cam.rays(spp)
+    flat_dirs = dirs.reshape(-1, 3)
+    seconds["rays"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    hits = tracer.first_hits(origins.reshape(-1, 3), flat_dirs)
+    seconds["intersect"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    radiance = np.zeros((flat_dirs.shape[0], 3))
+    hit_mask = np.zeros(flat_dirs.shape[0], dtype=bool)
+    hit_mask[hits.ray] = True
+    if scene.background and (~hit_mask).any():
+        radiance[~hit_mask] = scene.environment.lookup(flat_dirs[~hit_mask])
+    if len(hits):
+        radiance[hits.ray] = method.shade(scene, tracer, hits)
+    seconds["shade"] = time.perf_counter() - t0
+    n = spp * spp
+    image = radiance.reshape(cam.height, cam.width, n, 3).mean(axis=2).astype(np.float32)
+    coverage = hit_mask.reshape(cam.height, cam.width, n).mean(axis=2).astype(np.float32)
+    return Rendering(image, coverage, method.describe(), seconds)

@@ -1,0 +1,351 @@
+"""Scenes: meshes with diffuse materials, an optional ground plane, a pinhole camera, and an environment map as the
+only light (visible as the background).
+
+Conventions: world frame of :mod:`lightprobe.frames` (+Y up, the default camera looks along −Z). Lengths are in the
+meshes' own units. A scene file is YAML or JSON::
+
+    probe: path/to/probe.hdr            # optional; default: the shipped probe (paths relative to the file)
+    rotate: [0, 0, 0]                   # optional yaw, pitch, roll of the environment, degrees
+    camera: {eye: [0, 0.6, 2.2], target: [0, 0.3, 0], up: [0, 1, 0], fov: 35, width: 256, height: 256}
+    meshes:
+      - {file: bunny.ply, albedo: [0.8, 0.8, 0.8], fit: 0.8, place_on_ground: true, rotate: [0, 0, 0]}
+      - {shape: sphere, albedo: [0.7, 0.7, 0.7], radius: 0.3, center: [0.5, 0.3, 0]}
+    ground: {albedo: [0.5, 0.5, 0.5], size: 20, height: 0}     # or ground: false
+    background: true
+
+``fit`` scales a mesh so its largest extent is that many units and centres it on x and z; ``place_on_ground`` sets
+its lowest point on the ground plane. Albedo is linear RGB reflectance in [0, 1]; ``texture`` (an image file) with
+the mesh's UVs overrides it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..envmap import EnvMap, read_envmap
+from ..errors import InputError, LightprobeError
+from ..frames import as_rotation
+
+MAX_TRIANGLES = 20_000_000
+
+
+@dataclass(frozen=True)
+class Camera:
+    """Pinhole camera: ``fov`` is the vertical field of view in degrees; image row 0 is the top."""
+
+    eye: tuple[float, float, float] = (0.0, 0.5, 3.0)
+    target: tuple[float, float, float] = (0.0, 0.3, 0.0)
+    up: tuple[float, float, float] = (0.0, 1.0, 0.0)
+    fov: float = 35.0
+    width: int = 256
+    height: int = 256
+
+    def __post_init__(self) -> None:
+        if not (1 <= self.width <= 16384 and 1 <= self.height <= 16384):
+            raise LightprobeError(f"camera size {self.width}×{self.height} is out of range (1..16384)")
+        if not 0.1 <= self.fov <= 179:
+            raise LightprobeError(f"camera fov {self.fov} must be within 0.1..179 degrees")
+        f = np.subtract(self.target, self.eye)
+        if np.linalg.norm(f) == 0 or np.linalg.norm(np.cross(f, self.up)) == 0:
+            raise LightprobeError("camera eye, target and up must not be collinear")
+
+    def basis(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(right, up, forward) unit vectors of the camera in the world frame."""
+        forward = np.subtract(self.target, self.eye).astype(np.float64)
+        forward /= np.linalg.norm(forward)
+        right = np.cross(forward, self.up)
+        right /= np.linalg.norm(right)
+        return right, np.cross(right, forward), forward
+
+    def rays(self, spp: int = 1) -> tuple[np.ndarray, np.ndarray]:
+        """Ray origins and unit directions for spp × spp stratified samples per pixel: (H, W, spp², 3)."""
+        right, up, forward = self.basis()
+        half_h = np.tan(np.radians(self.fov) / 2)
+        half_w = half_h * self.width / self.height
+        sub = (np.arange(spp) + 0.5) / spp
+        sx = (np.arange(self.width)[:, None] + sub[None, :]).reshape(-1)
+        sy = (np.arange(self.height)[:, None] + sub[None, :]).reshape(-1)
+        x = (2 * sx / self.width - 1) * half_w  # (W·spp,)
+        y = (1 - 2 * sy / self.height) * half_h  # (H·spp,)
+        d = (x[None, :, None] * right + y[:, None, None] * up + forward)  # (H·spp, W·spp, 3)
+        d /= np.linalg.norm(d, axis=-1, keepdims=True)
+        d = d.reshape(self.height, spp, self.width, spp, 3).transpose(0, 2, 1, 3, 4).reshape(
+            self.height, self.width, spp * spp, 3)
+        return np.broadcast_to(np.asarray(self.eye, dtype=np.float64), d.shape), d
+
+
+@dataclass(frozen=True)
+class Material:
+    """Lambertian reflectance: ``albedo`` linear RGB, or ``texture`` (linear RGB image, looked up at the mesh UVs)."""
+
+    albedo: tuple[float, float, float] = (0.8, 0.8, 0.8)
+    texture: np.ndarray | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        a = np.asarray(self.albedo, dtype=np.float64)
+        if a.shape != (3,) or (a < 0).any() or (a > 1).any():
+            raise LightprobeError(f"albedo must be three numbers in [0, 1], got {self.albedo}")
+
+
+@dataclass(frozen=True, eq=False)
+class MeshInstance:
+    """Triangles in world space with per-vertex shading normals (and optional UVs) and a material."""
+
+    vertices: np.ndarray  # (V, 3) float64
+    faces: np.ndarray  # (F, 3) int64
+    normals: np.ndarray  # (V, 3) unit vertex normals
+    material: Material = Material()
+    uv: np.ndarray | None = None  # (V, 2), v up (OpenGL/OBJ convention)
+    name: str = "mesh"
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    """Meshes + camera + the environment (radiance, world frame) that lights them and is seen behind them."""
+
+    meshes: tuple[MeshInstance, ...]
+    camera: Camera
+    environment: EnvMap
+    background: bool = True
+    name: str = "scene"
+
+    @property
+    def triangle_count(self) -> int:
+        return sum(len(m.faces) for m in self.meshes)
+
+
+# ---- building meshes ----------------------------------------------------------------------------------------------
+def _vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Area-weighted vertex normals (the sum of the unnormalised face normals at each vertex)."""
+    tri = vertices[faces]
+    face_n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    n = np.zeros_like(vertices)
+    for k in range(3):
+        np.add.at(n, faces[:, k], face_n)
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    return np.where(length > 0, n / np.where(length > 0, length, 1), [0.0, 1.0, 0.0])
+
+
+def mesh_instance(vertices, faces, material: Material = Material(), normals=None, uv=None,
+                  name: str = "mesh") -> MeshInstance:
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64)
+    if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3 or len(f) == 0:
+        raise LightprobeError(f"{name}: a mesh needs (V, 3) vertices and (F, 3) triangles")
+    if f.min() < 0 or f.max() >= len(v):
+        raise LightprobeError(f"{name}: triangle indices out of range")
+    if not np.isfinite(v).all():
+        raise LightprobeError(f"{name}: vertices contain NaN or infinite coordinates")
+    n = _vertex_normals(v, f) if normals is None else np.asarray(normals, dtype=np.float64)
+    return MeshInstance(v, f, n, material, None if uv is None else np.asarray(uv, dtype=np.float64), name)
+
+
+def load_mesh(path: str | os.PathLike, material: Material = Material()) -> MeshInstance:
+    """A mesh file (OBJ, PLY, STL, glTF/GLB, OFF …) through trimesh, as one triangle mesh with smooth normals."""
+    import trimesh
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"cannot read mesh {path}: no such file")
+    try:
+        loaded = trimesh.load(str(path), force="mesh", process=False)
+    except Exception as e:  # trimesh raises many kinds of errors for bad files
+        raise InputError(f"cannot read mesh {path}: {str(e).splitlines()[0] if str(e) else type(e).__name__}") \
+            from None
+    if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
+        raise InputError(f"cannot read mesh {path}: no triangles in it")
+    if len(loaded.faces) > MAX_TRIANGLES:
+        raise InputError(f"refusing mesh {path}: {len(loaded.faces)} triangles is over {MAX_TRIANGLES}")
+    uv = getattr(loaded.visual, "uv", None)
+    texture = None
+    if uv is not None and material.texture is None:
+        image = getattr(getattr(loaded.visual, "material", None), "image", None)
+        if image is not None:
+            from ..tonemap import srgb_decode
+
+            texture = srgb_decode(np.asarray(image.convert("RGB"), dtype=np.float32) / 255.0)
+    mat = Material(material.albedo, texture if texture is not None else material.texture)
+    return mesh_instance(loaded.vertices, loaded.faces, mat, uv=uv, name=path.stem)
+
+
+def transformed(mesh: MeshInstance, scale: float = 1.0, rotation=None, translate=(0.0, 0.0, 0.0)) -> MeshInstance:
+    """The mesh scaled, then rotated ((yaw, pitch, roll) degrees or a matrix), then translated."""
+    r = np.eye(3) if rotation is None else as_rotation(rotation)
+    v = (mesh.vertices * scale) @ r.T + np.asarray(translate, dtype=np.float64)
+    return MeshInstance(v, mesh.faces, mesh.normals @ r.T, mesh.material, mesh.uv, mesh.name)
+
+
+def fitted(mesh: MeshInstance, size: float, on_ground: bool = True, ground_height: float = 0.0) -> MeshInstance:
+    """Scale so the largest extent is ``size``, centre on x and z, and (optionally) stand it on the ground."""
+    lo, hi = mesh.vertices.min(axis=0), mesh.vertices.max(axis=0)
+    s = size / max(float((hi - lo).max()), 1e-12)
+    centre = (lo + hi) / 2 * s
+    lift = ground_height - lo[1] * s if on_ground else -centre[1]
+    return transformed(mesh, s, None, (-centre[0], lift, -centre[2]))
+
+
+def sphere(radius: float = 0.5, center=(0.0, 0.0, 0.0), material: Material = Material(),
+           subdivisions: int = 5) -> MeshInstance:
+    """An icosphere with exact sphere normals (so shading is that of a perfect sphere)."""
+    import trimesh
+
+    ico = trimesh.creation.icosphere(subdivisions=subdivisions)
+    unit = ico.vertices / np.linalg.norm(ico.vertices, axis=1, keepdims=True)
+    return mesh_instance(unit * radius + np.asarray(center), ico.faces, material, normals=unit, name="sphere")
+
+
+def torus(major: float = 0.35, minor: float = 0.12, center=(0.0, 0.0, 0.0), material: Material = Material(),
+          rotation=(0.0, 90.0, 0.0)) -> MeshInstance:
+    """A torus; by default lying flat (its axis turned from trimesh's +Z to +Y), so ``center`` y = ``minor`` rests
+    it on the ground."""
+    import trimesh
+
+    t = trimesh.creation.torus(major_radius=major, minor_radius=minor, major_sections=96, minor_sections=48)
+    return transformed(mesh_instance(t.vertices, t.faces, material, name="torus"), 1.0, rotation, center)
+
+
+def ground_plane(size: float = 20.0, height: float = 0.0, material: Material = Material((0.5, 0.5, 0.5))) -> MeshInstance:
+    h = size / 2
+    v = np.array([[-h, height, -h], [h, height, -h], [h, height, h], [-h, height, h]])
+    f = np.array([[0, 2, 1], [0, 3, 2]])  # counter-clockwise seen from above: normal +Y
+    return mesh_instance(v, f, material, normals=np.tile([0.0, 1.0, 0.0], (4, 1)), name="ground")
+
+
+# ---- scenes -------------------------------------------------------------------------------------------------------
+KEY_LIGHT_AZIMUTH = -135.0  # behind the default camera, on its left: lit fronts, shadows falling back and right
+
+
+def key_light_azimuth(env: EnvMap) -> float:
+    """Azimuth φ (degrees; 0 = front −Z, 90 = +X) of the pixel carrying the most light (luminance × solid angle)."""
+    from ..tonemap import luminance
+
+    power = luminance(env.data) * env.solid_angles()
+    d = env.directions()[np.unravel_index(np.argmax(power), power.shape)]
+    return float(np.degrees(np.arctan2(d[0], -d[2])))
+
+
+def with_key_light_at(env: EnvMap, azimuth: float = KEY_LIGHT_AZIMUTH) -> EnvMap:
+    """The environment turned about +Y so its brightest light comes from ``azimuth`` (a yaw ψ moves φ to φ − ψ)."""
+    return env.rotated((key_light_azimuth(env) - azimuth, 0.0, 0.0))
+
+
+def builtin_scene(environment: EnvMap, width: int = 256, height: int = 256, turn_to_key_light: bool = True) -> Scene:
+    """The scene commands use when given none: a sphere and a flat torus standing on a grey ground plane, the
+    environment turned so its brightest light comes from behind the camera's left."""
+    meshes = (
+        sphere(0.3, (-0.35, 0.3, 0.0), Material((0.75, 0.75, 0.75))),
+        torus(0.26, 0.1, (0.42, 0.1, 0.1), Material((0.8, 0.55, 0.35))),
+        ground_plane(20.0, 0.0, Material((0.5, 0.5, 0.5))),
+    )
+    camera = Camera(eye=(0.0, 0.8, 2.3), target=(0.0, 0.2, 0.0), fov=35, width=width, height=height)
+    env = with_key_light_at(environment) if turn_to_key_light else environment
+    return Scene(meshes, camera, env, True, "builtin: sphere and torus on a ground plane")
+
+
+def mesh_scene(mesh_path: str | os.PathLike, environment: EnvMap, width: int = 256, height: int = 256,
+               ground: bool = True, albedo=(0.8, 0.8, 0.8), turn_to_key_light: bool = True) -> Scene:
+    """One mesh (fitted to 1 unit, standing on a ground plane) framed by the default camera, the environment
+    turned so its brightest light comes from behind the camera's left."""
+    mesh = fitted(load_mesh(mesh_path, Material(tuple(albedo))), 1.0, on_ground=True)
+    environment = with_key_light_at(environment) if turn_to_key_light else environment
+    meshes = (mesh, ground_plane(20.0, 0.0)) if ground else (mesh,)
+    top = float(mesh.vertices[:, 1].max())
+    camera = Camera(eye=(0.0, 0.55 * top + 0.35, 2.6), target=(0.0, 0.45 * top, 0.0), fov=32, width=width,
+                    height=height)
+    return Scene(meshes, camera, environment, True, Path(mesh_path).name)
+
+
+def sphere_scene(environment: EnvMap, size: int = 64, fov: float = 30.0) -> Scene:
+    """A unit-radius sphere alone, filling most of the frame: no shadows, no occlusion (for method checks)."""
+    distance = 1.15 / np.sin(np.radians(fov) / 2)
+    camera = Camera(eye=(0.0, 0.0, distance), target=(0.0, 0.0, 0.0), fov=fov, width=size, height=size)
+    return Scene((sphere(1.0, (0, 0, 0), Material((1.0, 1.0, 1.0)), subdivisions=6),), camera, environment, True,
+                 "unshadowed sphere")
+
+
+def load_scene(path: str | os.PathLike, environment: EnvMap | None = None) -> Scene:
+    """A scene from a YAML or JSON file (see the module docstring); ``environment`` overrides its ``probe``."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"cannot read scene {path}: no such file")
+    text = path.read_text(encoding="utf-8", errors="replace")
+    try:
+        if path.suffix.lower() == ".json":
+            spec = json.loads(text)
+        else:
+            import yaml
+
+            spec = yaml.safe_load(text)
+    except Exception as e:
+        raise InputError(f"cannot read scene {path}: {str(e).splitlines()[0]}") from None
+    if not isinstance(spec, dict):
+        raise InputError(f"cannot read scene {path}: expected a mapping at the top level")
+    return scene_from_dict(spec, path.parent, environment, path.stem)
+
+
+def _vec(value, n: int, what: str) -> tuple[float, ...]:
+    try:
+        v = tuple(float(x) for x in value)
+    except (TypeError, ValueError):
+        v = ()
+    if len(v) != n or not all(np.isfinite(v)):
+        raise InputError(f"scene: {what} must be {n} numbers, got {value!r}")
+    return v
+
+
+def scene_from_dict(spec: dict, base: Path, environment: EnvMap | None = None, name: str = "scene") -> Scene:
+    from ..data import default_probe_path
+
+    if environment is None:
+        probe = spec.get("probe")
+        environment = read_envmap(base / probe if probe else default_probe_path())
+    if spec.get("rotate") is not None:
+        environment = environment.rotated(_vec(spec["rotate"], 3, "rotate"))
+    cam = spec.get("camera") or {}
+    camera = Camera(
+        eye=_vec(cam.get("eye", Camera.eye), 3, "camera.eye"), target=_vec(cam.get("target", Camera.target), 3,
+                                                                          "camera.target"),
+        up=_vec(cam.get("up", Camera.up), 3, "camera.up"), fov=float(cam.get("fov", Camera.fov)),
+        width=int(cam.get("width", Camera.width)), height=int(cam.get("height", Camera.height)))
+    ground = spec.get("ground", {"albedo": [0.5, 0.5, 0.5]})
+    height = float(ground.get("height", 0.0)) if isinstance(ground, dict) else 0.0
+    meshes = []
+    for i, entry in enumerate(spec.get("meshes") or []):
+        if not isinstance(entry, dict):
+            raise InputError(f"scene: meshes[{i}] must be a mapping")
+        material = Material(_vec(entry.get("albedo", (0.8, 0.8, 0.8)), 3, f"meshes[{i}].albedo"))
+        if "texture" in entry:
+            from ..io import read_image
+
+            material = Material(material.albedo, read_image(base / entry["texture"]))
+        if entry.get("shape") == "sphere":
+            mesh = sphere(float(entry.get("radius", 0.5)), _vec(entry.get("center", (0, 0.5, 0)), 3, "center"),
+                          material)
+        elif entry.get("shape") == "torus":
+            mesh = torus(float(entry.get("major", 0.35)), float(entry.get("minor", 0.12)),
+                         _vec(entry.get("center", (0, 0.12, 0)), 3, "center"), material)
+        elif "file" in entry:
+            mesh = load_mesh(base / entry["file"], material)
+            if entry.get("rotate") is not None:
+                mesh = transformed(mesh, 1.0, _vec(entry["rotate"], 3, "rotate"))
+            if entry.get("fit") is not None:
+                mesh = fitted(mesh, float(entry["fit"]), bool(entry.get("place_on_ground", True)), height)
+            if entry.get("scale") is not None or entry.get("translate") is not None:
+                mesh = transformed(mesh, float(entry.get("scale", 1.0)), None,
+                                   _vec(entry.get("translate", (0, 0, 0)), 3, "translate"))
+        else:
+            raise InputError(f"scene: meshes[{i}] needs a file or a shape (sphere, torus)")
+        meshes.append(mesh)
+    if ground:
+        albedo = _vec(ground.get("albedo", (0.5, 0.5, 0.5)), 3, "ground.albedo") if isinstance(ground, dict) else (
+            0.5, 0.5, 0.5)
+        size = float(ground.get("size", 20.0)) if isinstance(ground, dict) else 20.0
+        meshes.append(ground_plane(size, height, Material(albedo)))
+    if not meshes:
+        raise InputError("scene: nothing to render (no meshes and no ground)")
+    return Scene(tuple(meshes), camera, environment, bool(spec.get("background", True)), name)
