@@ -17,7 +17,7 @@ from lightprobe.render.methods import method
 from lightprobe.render.raycast import Tracer
 from lightprobe.render.reference import mitsuba_latlong, reference_coverage, reference_render
 from lightprobe.render.renderer import render
-from lightprobe.render.scene import (Camera, Scene, load_scene, mesh_scene, sphere, sphere_scene,
+from lightprobe.render.scene import (Camera, Material, Scene, mesh_instance, load_scene, mesh_scene, sphere, sphere_scene,
                                      with_key_light_at, key_light_azimuth)
 from test_envmap import spot_map
 
@@ -131,6 +131,22 @@ def test_mitsuba_environment_is_a_half_turn():
     rolled = mitsuba_latlong(env)
     row = rolled[32] @ [1, 1, 1]
     assert abs(int(np.argmax(row)) - 0) <= 1 or abs(int(np.argmax(row)) - 127) <= 1  # Mitsuba's u = 0 is −Z
+
+
+def test_textures_land_the_same_way_in_both_renderers():
+    """An asymmetric texture (red top-left quadrant) on a quad facing the camera: a v or u flip would show."""
+    texture = np.full((8, 8, 3), 0.2, np.float32)
+    texture[:4, :4] = [0.9, 0.1, 0.1]  # top-left of the image = uv (0, 1) in OBJ convention
+    quad = mesh_instance([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], [[0, 1, 2], [0, 2, 3]],
+                         Material((0.5, 0.5, 0.5), texture), normals=np.tile([0, 0, 1.0], (4, 1)),
+                         uv=[[0, 0], [1, 0], [1, 1], [0, 1]])
+    white = EnvMap(np.ones((16, 32, 3), np.float32), LATLONG)
+    scene = Scene((quad,), Camera(eye=(0, 0, 4), target=(0, 0, 0), fov=30, width=32, height=32), white, False)
+    ours = render(scene, method("brute"), spp=2).image
+    theirs = reference_render(scene, spp=64).image
+    assert ours[9, 9, 0] > 2 * ours[9, 9, 1] and ours[22, 22, 0] < 1.5 * ours[22, 22, 1]  # red at top-left only
+    inner = (slice(6, 26), slice(6, 26))
+    assert relative_mse(ours[inner], theirs[inner]) < 5e-3
 
 
 def test_global_illumination_adds_light():

@@ -77,15 +77,32 @@ def mitsuba_latlong(env: EnvMap) -> np.ndarray:
 
 
 def write_ply(path: Path, mesh: MeshInstance) -> None:
-    """Binary PLY with float32 positions and normals, int32 triangle indices."""
-    v = np.concatenate([mesh.vertices, mesh.normals], axis=1).astype("<f4")
+    """Binary PLY with float32 positions, normals and (if any) UVs, int32 triangle indices.
+
+    UVs are written with v flipped: lightprobe keeps OBJ/OpenGL's convention (v = 0 at the bottom of the image),
+    Mitsuba's bitmap lookup puts v = 0 at the top (its OBJ loader flips v the same way)."""
+    columns = [mesh.vertices, mesh.normals]
+    props = ["x", "y", "z", "nx", "ny", "nz"]
+    if mesh.uv is not None:
+        columns.append(np.stack([mesh.uv[:, 0], 1.0 - mesh.uv[:, 1]], axis=1))
+        props += ["u", "v"]
+    v = np.concatenate(columns, axis=1).astype("<f4")
     f = np.empty(len(mesh.faces), dtype=[("n", "u1"), ("i", "<i4", (3,))])
     f["n"], f["i"] = 3, mesh.faces
     header = (f"ply\nformat binary_little_endian 1.0\nelement vertex {len(v)}\n"
-              "property float x\nproperty float y\nproperty float z\n"
-              "property float nx\nproperty float ny\nproperty float nz\n"
-              f"element face {len(f)}\nproperty list uchar int vertex_indices\nend_header\n")
+              + "".join(f"property float {p}\n" for p in props)
+              + f"element face {len(f)}\nproperty list uchar int vertex_indices\nend_header\n")
     path.write_bytes(header.encode("ascii") + v.tobytes() + f.tobytes())
+
+
+def _reflectance(mesh: MeshInstance, folder: Path, index: int) -> dict:
+    """Mitsuba reflectance of a material: an RGB value, or the texture (linear, bilinear, repeating)."""
+    mat = mesh.material
+    if mat.texture is None or mesh.uv is None:
+        return {"type": "rgb", "value": [float(x) for x in mat.albedo]}
+    path = folder / f"texture{index}.exr"
+    write_image(path, np.ascontiguousarray(mat.texture[..., :3], dtype=np.float32))
+    return {"type": "bitmap", "filename": str(path), "raw": True, "filter_type": "bilinear", "wrap_mode": "repeat"}
 
 
 def scene_dict(mi, scene: Scene, folder: Path, spp: int, global_illumination: bool, seed: int) -> dict:
@@ -108,14 +125,11 @@ def scene_dict(mi, scene: Scene, folder: Path, spp: int, global_illumination: bo
         "environment": {"type": "envmap", "filename": str(env_path)},
     }
     for i, mesh in enumerate(scene.meshes):
-        if mesh.material.texture is not None:
-            raise LightprobeError("the Mitsuba reference does not take textured materials yet; use albedo colours")
         ply = folder / f"mesh{i}.ply"
         write_ply(ply, mesh)
         d[f"mesh{i}"] = {
             "type": "ply", "filename": str(ply), "face_normals": False,
-            "bsdf": {"type": "twosided", "bsdf": {"type": "diffuse", "reflectance": {
-                "type": "rgb", "value": [float(x) for x in mesh.material.albedo]}}},
+            "bsdf": {"type": "twosided", "bsdf": {"type": "diffuse", "reflectance": _reflectance(mesh, folder, i)}},
         }
     return d
 
