@@ -19,6 +19,7 @@ from .export import TARGETS, export
 from .io import atomic_path, write_image
 from .irradiance import brute_irradiance, error_report, irradiance_map, reference_normals
 from .layouts import LAYOUTS
+from .progress import track
 from .sh import SHCoeffs, name, project
 from .tonemap import auto_exposure, heatmap
 
@@ -286,7 +287,7 @@ def run_demo(env: EnvMap, out: Path, probe_name: str | None = None) -> Path:
     rep = Report(env, out, probe_name or "the shipped probe: Poly Haven “Rooitou Park” (CC0), 512×256 latlong",
                  exposure=auto_exposure(env.data, env.solid_angles()))
     t0 = time.perf_counter()
-    body = "".join(section(rep) for section in SECTIONS)
+    body = "".join(section(rep) for section in track(SECTIONS, "writing the report", total=len(SECTIONS)))
     timings = table(["step", "time"], [[k, f"{1000 * v:.1f} ms"] for k, v in rep.timings.items()])
     page = (f"<!doctype html><html><head><meta charset='utf-8'><title>lightprobe report</title>"
             f"<style>{_STYLE}</style></head><body><h1>lightprobe report</h1>{body}"

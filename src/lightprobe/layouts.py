@@ -39,6 +39,7 @@ class Layout(ABC):
     name: str
     faces: int = 1
     aspect: tuple[int, int] = (1, 1)  # (width, height) units of a flat layout's image
+    valid_fraction: float = 1.0  # share of the image's pixels that cover the sphere (π/4 for discs, ½ for crosses)
 
     # ---- shapes -------------------------------------------------------------------------------------------------
     def grid_shape(self, size: int) -> Grid:
@@ -136,8 +137,6 @@ class Layout(ABC):
         """A size whose valid pixel count is close to ``valid_pixels`` (keeps the angular resolution)."""
         per_size2 = self.valid_fraction * self.aspect[0] * self.aspect[1] * self.faces
         return max(1, int(round(np.sqrt(valid_pixels / per_size2))))
-
-    valid_fraction: float = 1.0
 
     def __repr__(self) -> str:
         return f"<layout {self.name}>"
