@@ -92,6 +92,16 @@ def test_latlong_fast_path_equals_the_direct_sum():
     np.testing.assert_allclose(fast.coeffs, slow.coeffs, rtol=1e-10, atol=1e-12 * np.abs(slow.coeffs).max())
 
 
+@pytest.mark.parametrize("height", [1, 3, 32, 33])  # W = 2H: divisible by 4 or not
+@pytest.mark.parametrize("l_max", [0, 1, 2, 3, 6])
+def test_every_latlong_kernel_equals_the_direct_sum(height, l_max):
+    """The lat-long fast paths (SH9 half-row fold, quarter-row fold, plain sweep) against Σ L Y Δω."""
+    data = np.random.default_rng(height * 10 + l_max).random((height, 2 * height, 3)).astype(np.float32)
+    env = EnvMap(data, LATLONG)
+    fast, slow = project(env, l_max), project(env, l_max, fast=False)
+    np.testing.assert_allclose(fast.coeffs, slow.coeffs, rtol=1e-10, atol=1e-12 * np.abs(slow.coeffs).max())
+
+
 def test_frame_change_to_rh2001_negates_odd_z():
     sh = SHCoeffs(np.random.default_rng(2).normal(size=(9, 3)))
     flipped = sh.to_frame(RH2001)

@@ -349,12 +349,127 @@ def _latlong_row_sums(img, cos_table, sin_table, out):  # pragma: no cover - com
         out[r, 0, 2] = s2
 
 
+@njit(cache=True, parallel=True, fastmath=True)
+def _latlong_row_sums_folded(img, cos_table, sin_table, out):  # pragma: no cover - compiled
+    """The same sums as :func:`_latlong_row_sums` for W divisible by 4, folding each row to a quarter first.
+
+    The columns c, W−1−c, c+W/2 and W/2−1−c sit at azimuths φ, −φ, φ+π and π−φ, whose cos mφ and sin mφ differ
+    only in sign: with pixels a, b, c, d there, Σ v cos mφ = (a + b ± (c + d)) cos mφ and
+    Σ v sin mφ = (a − b ± (c − d)) sin mφ, the sign + for even m and − for odd m. Each row is folded into four
+    quarter-length buffers, then swept per order like the plain kernel: about a quarter of the multiply-adds.
+    Tables hold the first W/4 columns."""
+    h, w, _ = img.shape
+    q = w // 4
+    half = w // 2
+    n_m = cos_table.shape[0]
+    for r in prange(h):
+        fold = np.empty((4, 3, q))  # even-cos, odd-cos, even-sin, odd-sin
+        for col in range(q):
+            for ch in range(3):
+                a = np.float64(img[r, col, ch])
+                b = np.float64(img[r, w - 1 - col, ch])
+                c = np.float64(img[r, col + half, ch])
+                d = np.float64(img[r, half - 1 - col, ch])
+                fold[0, ch, col] = (a + b) + (c + d)
+                fold[1, ch, col] = (a + b) - (c + d)
+                fold[2, ch, col] = (a - b) + (c - d)
+                fold[3, ch, col] = (a - b) - (c - d)
+        for ch in range(3):
+            total = 0.0
+            for col in range(q):
+                total += fold[0, ch, col]
+            out[r, 0, ch] = total
+        for m in range(1, n_m):
+            kc = 0 if m % 2 == 0 else 1
+            ks = 2 if m % 2 == 0 else 3
+            for ch in range(3):
+                sc = 0.0
+                ss = 0.0
+                for col in range(q):
+                    sc += fold[kc, ch, col] * cos_table[m, col]
+                    ss += fold[ks, ch, col] * sin_table[m, col]
+                out[r, 2 * m - 1, ch] = sc
+                out[r, 2 * m, ch] = ss
+
+
+@njit(cache=True, parallel=True, fastmath=True)
+def _latlong_row_sums_sh9(img, cos_table, sin_table, out):  # pragma: no cover - compiled
+    """Orders m ≤ 2 (SH9) for even W in one sweep over half of each row: columns c and c + W/2 sit at φ and φ + π,
+    so with s = a + c and t = a − c the sums are Σ s, Σ t cos φ, Σ t sin φ, Σ s cos 2φ, Σ s sin 2φ over the first
+    half. Fifteen scalar accumulators and no buffers; tables hold the first W/2 columns, orders 0..2."""
+    h, w, _ = img.shape
+    half = w // 2
+    for r in prange(h):
+        s0 = s1 = s2 = 0.0
+        c10 = c11 = c12 = 0.0
+        n10 = n11 = n12 = 0.0
+        c20 = c21 = c22 = 0.0
+        n20 = n21 = n22 = 0.0
+        for col in range(half):
+            cos1 = cos_table[1, col]
+            sin1 = sin_table[1, col]
+            cos2 = cos_table[2, col]
+            sin2 = sin_table[2, col]
+            a0 = np.float64(img[r, col, 0])
+            a1 = np.float64(img[r, col, 1])
+            a2 = np.float64(img[r, col, 2])
+            b0 = np.float64(img[r, col + half, 0])
+            b1 = np.float64(img[r, col + half, 1])
+            b2 = np.float64(img[r, col + half, 2])
+            e0 = a0 + b0
+            e1 = a1 + b1
+            e2 = a2 + b2
+            d0 = a0 - b0
+            d1 = a1 - b1
+            d2 = a2 - b2
+            s0 += e0
+            s1 += e1
+            s2 += e2
+            c10 += d0 * cos1
+            c11 += d1 * cos1
+            c12 += d2 * cos1
+            n10 += d0 * sin1
+            n11 += d1 * sin1
+            n12 += d2 * sin1
+            c20 += e0 * cos2
+            c21 += e1 * cos2
+            c22 += e2 * cos2
+            n20 += e0 * sin2
+            n21 += e1 * sin2
+            n22 += e2 * sin2
+        out[r, 0, 0] = s0
+        out[r, 0, 1] = s1
+        out[r, 0, 2] = s2
+        out[r, 1, 0] = c10
+        out[r, 1, 1] = c11
+        out[r, 1, 2] = c12
+        out[r, 2, 0] = n10
+        out[r, 2, 1] = n11
+        out[r, 2, 2] = n12
+        out[r, 3, 0] = c20
+        out[r, 3, 1] = c21
+        out[r, 3, 2] = c22
+        out[r, 4, 0] = n20
+        out[r, 4, 1] = n21
+        out[r, 4, 2] = n22
+
+
 def _project_latlong(env: EnvMap, l_max: int) -> np.ndarray:
     h, w = env.grid
     phi = 2 * np.pi * ((np.arange(w) + 0.5) / w - 0.5)
     m = np.arange(l_max + 1)[:, None]
-    sums = np.empty((h, 2 * l_max + 1, 3))
-    _latlong_row_sums(np.ascontiguousarray(env.data), np.cos(m * phi), np.sin(m * phi), sums)
+    img = np.ascontiguousarray(env.data)
+    if l_max <= 2 and w % 2 == 0:  # SH9 and below: one sweep over half of each row
+        m3 = np.arange(3)[:, None]
+        full = np.empty((h, 5, 3))
+        _latlong_row_sums_sh9(img, np.cos(m3 * phi[: w // 2]), np.sin(m3 * phi[: w // 2]), full)
+        sums = full[:, : 2 * l_max + 1]
+    elif w % 4 == 0:  # higher orders: fold each row to a quarter first
+        sums = np.empty((h, 2 * l_max + 1, 3))
+        _latlong_row_sums_folded(img, np.cos(m * phi[: w // 4]), np.sin(m * phi[: w // 4]), sums)
+    else:
+        sums = np.empty((h, 2 * l_max + 1, 3))
+        _latlong_row_sums(img, np.cos(m * phi), np.sin(m * phi), sums)
     theta = np.pi * (np.arange(h) + 0.5) / h
     ring = np.stack([np.sin(theta), np.zeros(h), np.cos(theta)], axis=-1)  # φ = 0 point of each row, frame P
     legendre = basis(l_max, ring)  # at φ = 0: Y_l,+m = √2 N P cos 0, Y_l,−m = 0
