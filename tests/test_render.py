@@ -17,7 +17,7 @@ from lightprobe.render.methods import method
 from lightprobe.render.raycast import Tracer
 from lightprobe.render.reference import mitsuba_latlong, reference_coverage, reference_render
 from lightprobe.render.renderer import render
-from lightprobe.render.scene import (Camera, Material, Scene, mesh_instance, load_scene, mesh_scene, sphere, sphere_scene,
+from lightprobe.render.scene import (Camera, Material, Scene, ground_plane, mesh_instance, load_scene, mesh_scene, sphere, sphere_scene,
                                      with_key_light_at, key_light_azimuth)
 from test_envmap import spot_map
 
@@ -50,6 +50,19 @@ def test_sphere_hits_have_exact_normals_and_face_the_viewer():
     assert np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", hits.normal, radial / np.linalg.norm(radial, axis=1,
                                                                                                  keepdims=True)), -1, 1))).max() < 1.0
     assert (np.einsum("ij,ij->i", hits.normal, d.reshape(-1, 3)[hits.ray]) < 0).all()
+
+
+def test_shadow_rays():
+    """A light above a sphere resting on a plane: the plane under the sphere is occluded, far from it it is not."""
+    s = Scene((sphere(0.5, (0, 0.5, 0)), ground_plane(10.0, 0.0)), Camera(), spot_environment([0, 1, 0]))
+    tracer = Tracer(s)
+    o, d = np.array([[0.0, 3.0, 0.0], [3.0, 3.0, 0.0]]), np.array([[0.0, -1.0, 0.0], [0.0, -1.0, 0.0]])
+    hits = tracer.first_hits(o, d)
+    assert np.allclose(hits.position[:, 1], [1.0, 0.0], atol=1e-3)  # the sphere's top, then the plane
+    under = np.array([[0.0, 0.0, 0.0]]) + [0, 1e-4, 0]
+    assert tracer.occluded(under, [[0.0, 1.0, 0.0]]).tolist() == [True]
+    assert tracer.occluded(tracer.shadow_origins(hits)[1:], [[0.0, 1.0, 0.0]]).tolist() == [False]
+    assert tracer.occluded(tracer.shadow_origins(hits)[:1], [[0.0, 1.0, 0.0]]).tolist() == [False]  # no self-hit
 
 
 # ---- agreement with Mitsuba -----------------------------------------------------------------------------------------

@@ -60,16 +60,6 @@ def _open(path: Path):
     return inp
 
 
-def image_spec(path: str | os.PathLike) -> tuple[int, int, int, str]:
-    """(width, height, channels, pixel type) from the header alone."""
-    inp = _open(Path(path))
-    try:
-        s = inp.spec()
-        return s.width, s.height, s.nchannels, str(s.format)
-    finally:
-        inp.close()
-
-
 def _check_spec(path: Path, spec) -> None:
     w, h, c, depth = spec.width, spec.height, spec.nchannels, max(spec.depth, 1)
     if w < 1 or h < 1 or c < 1:

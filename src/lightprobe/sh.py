@@ -300,58 +300,9 @@ _LATLONG_POLAR = np.array([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
 
 
 @njit(cache=True, parallel=True, fastmath=True)
-def _latlong_row_sums(img, cos_table, sin_table, out):  # pragma: no cover - compiled
-    """Per row r: out[r, 0] = Σ_col img[r, col]; out[r, 2m−1] = Σ img·cos(mφ_col); out[r, 2m] = Σ img·sin(mφ_col).
-
-    Scalar float64 accumulators, one (cos, sin) order per sweep of the row (which stays in cache after the first),
-    the plain sum riding along with m = 1: measured fastest on 2 cores among table layouts, a GEMM and a batched
-    matmul, and exact to 1e-16."""
-    h, w, _ = img.shape
-    n_m = cos_table.shape[0]
-    for r in prange(h):
-        s0 = 0.0
-        s1 = 0.0
-        s2 = 0.0
-        for m in range(1, max(n_m, 2)):
-            a0 = 0.0
-            a1 = 0.0
-            a2 = 0.0
-            b0 = 0.0
-            b1 = 0.0
-            b2 = 0.0
-            first = m == 1
-            mm = min(m, n_m - 1)
-            for col in range(w):
-                c = cos_table[mm, col]
-                s = sin_table[mm, col]
-                v0 = np.float64(img[r, col, 0])
-                v1 = np.float64(img[r, col, 1])
-                v2 = np.float64(img[r, col, 2])
-                if first:
-                    s0 += v0
-                    s1 += v1
-                    s2 += v2
-                a0 += v0 * c
-                a1 += v1 * c
-                a2 += v2 * c
-                b0 += v0 * s
-                b1 += v1 * s
-                b2 += v2 * s
-            if m < n_m:
-                out[r, 2 * m - 1, 0] = a0
-                out[r, 2 * m - 1, 1] = a1
-                out[r, 2 * m - 1, 2] = a2
-                out[r, 2 * m, 0] = b0
-                out[r, 2 * m, 1] = b1
-                out[r, 2 * m, 2] = b2
-        out[r, 0, 0] = s0
-        out[r, 0, 1] = s1
-        out[r, 0, 2] = s2
-
-
-@njit(cache=True, parallel=True, fastmath=True)
 def _latlong_row_sums_folded(img, cos_table, sin_table, out):  # pragma: no cover - compiled
-    """The same sums as :func:`_latlong_row_sums` for W divisible by 4, folding each row to a quarter first.
+    """Per row r: out[r, 0] = Σ_col img[r, col]; out[r, 2m−1] = Σ img·cos(mφ_col); out[r, 2m] = Σ img·sin(mφ_col),
+    for W divisible by 4, folding each row to a quarter first.
 
     The columns c, W−1−c, c+W/2 and W/2−1−c sit at azimuths φ, −φ, φ+π and π−φ, whose cos mφ and sin mφ differ
     only in sign: with pixels a, b, c, d there, Σ v cos mφ = (a + b ± (c + d)) cos mφ and
@@ -459,17 +410,14 @@ def _project_latlong(env: EnvMap, l_max: int) -> np.ndarray:
     phi = 2 * np.pi * ((np.arange(w) + 0.5) / w - 0.5)
     m = np.arange(l_max + 1)[:, None]
     img = np.ascontiguousarray(env.data)
-    if l_max <= 2 and w % 2 == 0:  # SH9 and below: one sweep over half of each row
+    if l_max <= 2:  # SH9 and below: one sweep over half of each row (W = 2H is always even)
         m3 = np.arange(3)[:, None]
         full = np.empty((h, 5, 3))
         _latlong_row_sums_sh9(img, np.cos(m3 * phi[: w // 2]), np.sin(m3 * phi[: w // 2]), full)
         sums = full[:, : 2 * l_max + 1]
-    elif w % 4 == 0:  # higher orders: fold each row to a quarter first
+    else:  # higher orders: fold each row to a quarter first (W divisible by 4, see project)
         sums = np.empty((h, 2 * l_max + 1, 3))
         _latlong_row_sums_folded(img, np.cos(m * phi[: w // 4]), np.sin(m * phi[: w // 4]), sums)
-    else:
-        sums = np.empty((h, 2 * l_max + 1, 3))
-        _latlong_row_sums(img, np.cos(m * phi), np.sin(m * phi), sums)
     theta = np.pi * (np.arange(h) + 0.5) / h
     ring = np.stack([np.sin(theta), np.zeros(h), np.cos(theta)], axis=-1)  # φ = 0 point of each row, frame P
     legendre = basis(l_max, ring)  # at φ = 0: Y_l,+m = √2 N P cos 0, Y_l,−m = 0
@@ -550,12 +498,12 @@ def _project_generic(env: EnvMap, l_max: int) -> np.ndarray:
 def project(env: EnvMap, l_max: int = 2, frame: str | Frame = WORLD, fast: bool = True) -> SHCoeffs:
     """Radiance SH coefficients L_lm = Σ_pixels L(d_p) Y_lm(d_p) Δω_p (exact per-pixel solid angles), in ``frame``.
 
-    Lat-long maps use the separable row-sum kernel (one pass over the pixels, O(S·l_max) work); every other layout
-    evaluates the basis at its pixel directions. Both compute the same sum.
+    Lat-long maps use the separable row-sum kernels (one pass over the pixels, O(S·l_max) work; above order 2 they
+    need W divisible by 4); every other map evaluates the basis at its pixel directions. Both compute the same sum.
     """
     if l_max < 0:
         raise ValueError("l_max must be ≥ 0")
-    if fast and isinstance(env.layout, LatLong):
+    if fast and isinstance(env.layout, LatLong) and (l_max <= 2 or env.grid[1] % 4 == 0):
         coeffs = _project_latlong(env, l_max)
     else:
         coeffs = _project_generic(env, l_max)
