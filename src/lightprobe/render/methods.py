@@ -60,26 +60,16 @@ class SHMethod(Method):
                 if sel.any():
                     at_vertices = e.evaluate(mesh.normals)
                     corners = at_vertices[mesh.faces[hits.face[sel]]]  # (n, 3 corners, RGB)
-                    # vertex normals face outward; a hit seen from the back takes the far side's irradiance
                     irradiance[sel] = np.einsum("ij,ijk->ik", hits.barycentric[sel], corners)
-            back = np.einsum("ij,ij->i", hits.normal, _interpolated_normals(scene, hits)) < 0
-            if back.any():
-                irradiance[back] = e.evaluate(hits.normal[back])
+            # vertex normals face outward: a triangle seen from the back takes its far side's irradiance per pixel
+            if hits.back.any():
+                irradiance[hits.back] = e.evaluate(hits.normal[hits.back])
         return hits.albedo * np.maximum(irradiance, 0.0) / np.pi
 
     def describe(self):
         where = "per vertex" if self.per_vertex else "per pixel"
         window = "" if self.window == "none" else f", {self.window} window"
         return f"SH order {self.order} ({(self.order + 1) ** 2} coefficients), {where}{window}"
-
-
-def _interpolated_normals(scene: Scene, hits: Hits) -> np.ndarray:
-    out = np.empty((len(hits), 3))
-    for k, mesh in enumerate(scene.meshes):
-        sel = hits.mesh == k
-        if sel.any():
-            out[sel] = np.einsum("ij,ijk->ik", hits.barycentric[sel], mesh.normals[mesh.faces[hits.face[sel]]])
-    return out
 
 
 class BruteMethod(Method):

@@ -29,6 +29,7 @@ class Hits:
     mesh: np.ndarray
     face: np.ndarray  # triangle index within its mesh
     barycentric: np.ndarray
+    back: np.ndarray  # True where the viewer sees the back of the triangle (normals were flipped)
 
     def __len__(self) -> int:
         return len(self.ray)
@@ -73,7 +74,7 @@ class Tracer:
         shading = np.where(facing[:, None], -shading, shading)
         mesh_id = self.face_mesh[tri]
         return Hits(ray, location, shading, geometric, self._albedo(mesh_id, tri, bary), mesh_id,
-                    tri - self.face_offsets[mesh_id], bary)
+                    tri - self.face_offsets[mesh_id], bary, facing)
 
     def occluded(self, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
         """True where a ray (towards a light at infinity) hits any geometry."""
