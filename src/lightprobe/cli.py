@@ -361,7 +361,9 @@ def register_render(sub) -> None:
 def _scene_for(args):
     from .data import default_probe_path
     from .envmap import read_envmap
-    from .render.scene import Camera, builtin_scene, load_scene, mesh_scene
+    from dataclasses import replace
+
+    from .render.scene import builtin_scene, load_scene, mesh_scene
 
     env = read_envmap(args.probe) if args.probe else None
     path = args.scene
@@ -376,9 +378,7 @@ def _scene_for(args):
             w, h = (int(v) for v in args.size.lower().split("x"))
         except ValueError:
             raise LightprobeError(f"--size wants WxH, got {args.size!r}") from None
-        c = scene.camera
-        scene = type(scene)(scene.meshes, Camera(c.eye, c.target, c.up, c.fov, w, h), scene.environment,
-                            scene.background, scene.name)
+        scene = replace(scene, camera=replace(scene.camera, width=w, height=h))
     return scene
 
 
