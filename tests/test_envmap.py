@@ -161,7 +161,7 @@ def test_cube_file_is_a_strip_in_face_order():
 
 
 def test_resample_refuses_absurd_sizes():
-    from lightprobe.errors import InputError
+    from lightprobe.errors import BudgetError
 
-    with pytest.raises(InputError, match="limit"):
+    with pytest.raises(BudgetError, match="limit"):
         resample(spot_map("latlong", size=8), layout("latlong"), 10**6)

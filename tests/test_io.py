@@ -12,7 +12,7 @@ import pytest
 from conftest import shared
 from lightprobe import io as lpio
 from lightprobe.envmap import read_envmap
-from lightprobe.errors import InputError, LightprobeWarning
+from lightprobe.errors import LightprobeError, InputError, LightprobeWarning
 from lightprobe.io import read_image, write_image
 from lightprobe.tonemap import aces_filmic, srgb_decode, srgb_encode, tonemap
 
@@ -135,10 +135,10 @@ def test_unknown_output_format(tmp_path):
 def test_absurd_header_is_refused_before_reading(tmp_path, monkeypatch):
     path = tmp_path / "big.hdr"
     path.write_bytes(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 60000 +X 60000\n" + b"\x00" * 64)
-    with pytest.raises(InputError, match="limit"):
+    with pytest.raises(LightprobeError, match="limit"):
         read_image(path)
-    monkeypatch.setattr(lpio, "MAX_PIXELS", 100)
-    with pytest.raises(InputError, match="limit"):
+    monkeypatch.setenv("LIGHTPROBE_MAX_PIXELS", "100")
+    with pytest.raises(LightprobeError, match="limit"):
         read_image(shared("ict_lowres/grace.hdr"))
 
 

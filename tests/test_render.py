@@ -17,7 +17,8 @@ from lightprobe.render.methods import method
 from lightprobe.render.raycast import Tracer
 from lightprobe.render.reference import mitsuba_latlong, reference_coverage, reference_render
 from lightprobe.render.renderer import render
-from lightprobe.render.scene import (Camera, Material, Scene, ground_plane, mesh_instance, load_scene, mesh_scene, sphere, sphere_scene,
+from lightprobe.render.scenefile import load_scene
+from lightprobe.render.scene import (Camera, Material, Scene, ground_plane, mesh_instance, mesh_scene, sphere, sphere_scene,
                                      with_key_light_at, key_light_azimuth)
 from test_envmap import spot_map
 
@@ -197,7 +198,7 @@ def test_scene_files(tmp_path):
 @pytest.mark.parametrize("text,words", [
     ("meshes: [{file: nope.ply}]", "no such file"),
     ("meshes: [{shape: sphere, albedo: [2, 0, 0]}]", "albedo"),
-    ("camera: {width: 0}", "out of range"),
+    ("camera: {width: 0}", "camera.width must be within 1..16384"),
     ("meshes: [{}]", "needs a file or a shape"),
     ("camera: {eye: [0, 0, 0], target: [0, 0, 0]}", "collinear"),
     ("meshes: {{{", "cannot read scene"),

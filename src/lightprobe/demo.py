@@ -2,11 +2,20 @@
 
 The report is a list of sections (:data:`SECTIONS`); each is a function ``(Report) → html`` that may save pictures
 through :meth:`Report.picture`. Later capabilities add their sections to the list.
+
+Nothing of the user's is lost: the report is written into a fresh temporary folder beside ``out`` and moved into
+place only when complete (a report failing halfway leaves nothing); an existing ``out`` is replaced only when it is
+a previous report (it holds :data:`MARKER`) or is empty, or with ``force``. Timings are of warm kernels: the
+one-time compilation of the numba kernels is measured first and reported on its own line.
 """
 
 from __future__ import annotations
 
+import contextlib
 import html
+import os
+import secrets
+import shutil
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -15,8 +24,10 @@ import numpy as np
 
 from .design import design_figure, edit
 from .envmap import EnvMap, to_image
+from .errors import InputError, LightprobeError
 from .export import TARGETS, export
-from .io import atomic_path, write_image
+from .files import sweep_stale_temporaries, write_text
+from .io import write_image
 from .irradiance import brute_irradiance, error_report, irradiance_map, reference_normals
 from .layouts import LAYOUTS
 from .progress import track
@@ -201,8 +212,7 @@ def section_exports(rep: Report) -> str:
     links = []
     for target in TARGETS:
         path = folder / f"{target}.{suffix[target]}"
-        with atomic_path(path) as tmp:
-            tmp.write_text(export(rep.sh(2), target, csharp=suffix[target] == "cs"), encoding="utf-8")
+        write_text(path, export(rep.sh(2), target, csharp=suffix[target] == "cs"))
         links.append(f'<li><a href="exports/{path.name}">{target}</a></li>')
     return ("<h2>Exports</h2><p>The same nine coefficients converted to each engine's frame, sign convention and "
             "scaling (each checked in the test suite with that engine's own reconstruction formula against a "
@@ -234,13 +244,14 @@ def section_render(rep: Report) -> str:
     scene, what = _demo_scene(rep)
     tracer = Tracer(scene)
     results = {"sh": render(scene, method("sh"), 2, tracer), "brute": render(scene, method("brute"), 1, tracer)}
-    try:
-        from .render.reference import reference_render
+    from .render.reference import mitsuba, reference_render
 
-        results["reference"] = reference_render(scene, spp=256)
-    except Exception as e:  # no Mitsuba here: say so instead of failing the whole report
+    try:
+        mitsuba()
+    except LightprobeError as e:  # only a missing Mitsuba (or a variant that does not start) is tolerated
         return (f"<h2>Rendering against ground truth</h2><p>The Mitsuba reference is not available "
                 f"({html.escape(str(e))}); install it with <code>pip install 'lightprobe[reference]'</code>.</p>")
+    results["reference"] = reference_render(scene, spp=256)
     for label, r in results.items():
         rep.timings[f"render 192² {label}"] = sum(r.seconds.values())
     ref = results["reference"].image
@@ -280,20 +291,84 @@ figure img{max-width:100%;max-height:300px}.grid figure img{max-height:220px}fig
 """
 
 
-def run_demo(env: EnvMap, out: Path, probe_name: str | None = None) -> Path:
-    """Write the report for ``env`` into folder ``out`` (created if needed); returns the path of index.html."""
+MARKER = ".lightprobe-report"  # the file that makes a folder a previous report, safe to replace
+
+
+def warm_up() -> float:
+    """Run every compiled kernel the report uses once on a tiny map; returns the seconds it took (compilation, or
+    loading the compiled kernels from numba's cache)."""
+    from .layouts import LATLONG
+
+    t0 = time.perf_counter()
+    tiny = EnvMap(np.ones(LATLONG.grid_shape(8) + (3,), np.float32), LATLONG)
+    for lay in LAYOUTS:
+        tiny.to(lay, 4)
+    for l_max in (2, 6):
+        project(tiny, l_max)
+        project(tiny.to("cube", 4), l_max)
+    brute_irradiance(tiny, reference_normals(4))
+    return time.perf_counter() - t0
+
+
+def check_report_folder(out: Path, force: bool = False) -> None:
+    """Refuse an ``out`` that is a file, or a non-empty folder that is not a previous report (unless ``force``)."""
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"cannot write the report into {out}: it is a file, not a folder")
+    if out.is_dir() and not force and not (out / MARKER).exists() and any(out.iterdir()):
+        raise InputError(f"refusing to write the report into {out}: the folder holds files that are not a "
+                         "lightprobe report (choose another --out, or --force to replace the folder)")
+    parent = out.parent if str(out.parent) else Path(".")
+    if not parent.is_dir():
+        raise InputError(f"cannot write the report into {out}: folder {parent} does not exist")
+
+
+def _move_into_place(built: Path, out: Path) -> None:
+    """Put the finished folder ``built`` at ``out``; an old ``out`` is moved aside first and removed last."""
+    old = None
+    if out.exists():
+        old = out.with_name(f".{out.name}.lp{os.getpid()}-{secrets.token_hex(4)}.tmp")
+        os.replace(out, old)
+    try:
+        os.replace(built, out)
+    except OSError:
+        if old is not None:
+            os.replace(old, out)
+        raise
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+
+
+def run_demo(env: EnvMap, out: Path, probe_name: str | None = None, force: bool = False) -> Path:
+    """Write the report for ``env`` into folder ``out`` (see the module docstring); returns the path of index.html."""
+    out = Path(out)
+    check_report_folder(out, force)
+    parent = out.parent if str(out.parent) else Path(".")
+    sweep_stale_temporaries(parent)
+    building = parent / f".{out.name}.lp{os.getpid()}-{secrets.token_hex(4)}.tmp"
+    building.mkdir()
+    try:
+        (building / MARKER).write_text("a lightprobe demo report; lightprobe demo may replace this folder\n")
+        _write_report(env, building, probe_name)
+        _move_into_place(building, out)
+    finally:
+        with contextlib.suppress(OSError):
+            shutil.rmtree(building)
+    return out / "index.html"
+
+
+def _write_report(env: EnvMap, out: Path, probe_name: str | None) -> None:
     rep = Report(env, out, probe_name or "the shipped probe: Poly Haven “Rooitou Park” (CC0), 512×256 latlong",
                  exposure=auto_exposure(env.data, env.solid_angles()))
     t0 = time.perf_counter()
+    compile_seconds = warm_up()
     body = "".join(section(rep) for section in track(SECTIONS, "writing the report", total=len(SECTIONS)))
-    timings = table(["step", "time"], [[k, f"{1000 * v:.1f} ms"] for k, v in rep.timings.items()])
+    rows = [["compiling the numba kernels (first run on a machine; later runs load them from the cache)",
+             f"{1000 * compile_seconds:.1f} ms"]]
+    rows += [[k, f"{1000 * v:.1f} ms"] for k, v in rep.timings.items()]
     page = (f"<!doctype html><html><head><meta charset='utf-8'><title>lightprobe report</title>"
             f"<style>{_STYLE}</style></head><body><h1>lightprobe report</h1>{body}"
-            f"<h2>Timings</h2>{timings}"
+            f"<h2>Timings</h2><p>Each step timed warm, after the kernels were compiled.</p>"
+            f"{table(['step', 'time'], rows)}"
             f"<p><small>Made in {time.perf_counter() - t0:.1f} s.</small></p></body></html>")
-    index = out / "index.html"
-    with atomic_path(index) as tmp:
-        tmp.write_text(page, encoding="utf-8")
-    return index
+    write_text(out / "index.html", page)

@@ -17,22 +17,26 @@ from .sh import SHCoeffs, basis, degree_order, n_coeffs, name
 from .tonemap import tonemap
 
 _EDIT = re.compile(r"^L(\d+)(-?\d+)=(.+)$")
+MAX_VALUE = 1e9  # |coefficient| an edit may set
+MAX_FACTOR = 1e6  # |factor| a band may be scaled by
 
 
 def parse_set(text: str) -> tuple[tuple[int, int], np.ndarray]:
     """``L1-1=-0.4`` (all channels) or ``L20=0.1,0.2,0.3`` (RGB) → ((l, m), rgb)."""
     match = _EDIT.match(text.replace(" ", ""))
     if not match:
-        raise LightprobeError(f"cannot read the edit {text!r}; write it like L1-1=-0.4 or L20=0.1,0.2,0.3")
+        raise LightprobeError(f"cannot read the edit {text[:40]!r}; write it like L1-1=-0.4 or L20=0.1,0.2,0.3")
     l, m = int(match.group(1)), int(match.group(2))
     if abs(m) > l:
-        raise LightprobeError(f"{text!r}: |m| must not exceed l")
+        raise LightprobeError(f"{text[:40]!r}: |m| must not exceed l")
     try:
         values = [float(v) for v in match.group(3).split(",")]
     except ValueError:
-        raise LightprobeError(f"cannot read the value of {text!r}") from None
+        raise LightprobeError(f"cannot read the value of {text[:40]!r}") from None
     if len(values) not in (1, 3):
-        raise LightprobeError(f"{text!r}: give one value or three (R,G,B)")
+        raise LightprobeError(f"{text[:40]!r}: give one value or three (R,G,B)")
+    if not all(np.isfinite(v) and abs(v) <= MAX_VALUE for v in values):
+        raise LightprobeError(f"{text[:40]!r}: values must be finite numbers with |V| ≤ {MAX_VALUE:g}")
     return (l, m), np.broadcast_to(np.array(values), (3,)).copy()
 
 
@@ -40,9 +44,12 @@ def parse_scale(text: str) -> tuple[int, float]:
     """``2=0.5`` → (band 2, factor 0.5)."""
     try:
         band, factor = text.split("=")
-        return int(band), float(factor)
+        band, factor = int(band), float(factor)
     except ValueError:
-        raise LightprobeError(f"cannot read the band scale {text!r}; write it like 2=0.5") from None
+        raise LightprobeError(f"cannot read the band scale {text[:40]!r}; write it like 2=0.5") from None
+    if band < 0 or not (np.isfinite(factor) and abs(factor) <= MAX_FACTOR):
+        raise LightprobeError(f"{text[:40]!r}: the band must be ≥ 0 and the factor finite with |F| ≤ {MAX_FACTOR:g}")
+    return band, factor
 
 
 def edit(sh: SHCoeffs, sets: list[str] = (), scales: list[str] = ()) -> SHCoeffs:

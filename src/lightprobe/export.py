@@ -20,9 +20,11 @@ from math import pi
 
 import numpy as np
 
+from .errors import UsageError
 from .irradiance import C1, C2, C3, C4, C5
 from .frames import BABYLON, FILAMENT, GLTF, THREEJS, UNITY, WORLD, Frame, frame as frame_named
-from .sh import SHCoeffs, a_hat_per_coefficient, n_coeffs, name
+from .sh import SHCoeffs, a_hat_per_coefficient, name
+from .shfile import sh_json
 
 TARGETS = ("json", "threejs", "filament", "unity", "gltf", "babylon", "glsl")
 DEFAULT_FRAMES = {"json": WORLD, "threejs": THREEJS, "filament": FILAMENT, "unity": UNITY, "gltf": GLTF,
@@ -39,9 +41,9 @@ CS_SIGNS = np.array([1, -1, 1, -1, 1, -1, 1, -1, 1], dtype=np.float64)  # (−1)
 def _nine(sh: SHCoeffs, target_frame: Frame) -> np.ndarray:
     """Radiance L_lm, bands ≤ 2, stated in ``target_frame``: (9, 3)."""
     if sh.quantity != "radiance":
-        raise ValueError(f"exports start from radiance coefficients, got {sh.quantity}")
+        raise UsageError(f"exports start from radiance coefficients, got {sh.quantity}")
     if sh.l_max < 2:
-        raise ValueError("engine exports need coefficients up to band 2")
+        raise UsageError("engine exports need coefficients up to band 2")
     return sh.truncated(2).to_frame(target_frame).coeffs.copy()
 
 
@@ -71,19 +73,9 @@ def times_pi(c: np.ndarray) -> np.ndarray:
 
 # ---- targets --------------------------------------------------------------------------------------------------------
 def export_json(sh: SHCoeffs, frame: Frame = WORLD) -> str:
-    """lightprobe's own format: radiance L_lm in the paper's basis (no CS phase), any order, flat order, ``frame``."""
-    out = sh.to_frame(frame)
-    return json.dumps({
-        "format": "lightprobe.sh/1",
-        "quantity": out.quantity,
-        "frame": out.frame.name,
-        "frame_description": out.frame.description,
-        "basis": "real SH, no Condon-Shortley phase, flat index l(l+1)+m (Ramamoorthi & Hanrahan 2001)",
-        "window": out.window,
-        "l_max": out.l_max,
-        "names": [name(i) for i in range(n_coeffs(out.l_max))],
-        "coefficients": out.as_list(),
-    }, indent=1)
+    """lightprobe's own SH JSON (:mod:`lightprobe.shfile`): radiance L_lm in the paper's basis (no CS phase), any
+    order, flat order, ``frame``."""
+    return sh_json(sh, frame)
 
 
 def threejs_coefficients(sh: SHCoeffs, frame: Frame = THREEJS) -> np.ndarray:
@@ -166,7 +158,7 @@ def gltf_coefficients(sh: SHCoeffs, scaling: str = "babylon", frame: Frame = GLT
         return times_pi(c)
     if scaling == "irradiance":
         return radiance_to_irradiance(c)
-    raise ValueError(f"unknown glTF scaling {scaling!r}; choose {', '.join(GLTF_SCALINGS)}")
+    raise UsageError(f"unknown glTF scaling {scaling!r}; choose {', '.join(GLTF_SCALINGS)}")
 
 
 def export_gltf(sh: SHCoeffs, scaling: str = "babylon", frame: Frame = GLTF) -> str:
@@ -244,7 +236,7 @@ def export(sh: SHCoeffs, target: str, frame: str | Frame | None = None, gltf_sca
            csharp: bool = True) -> str:
     """Text of ``sh`` for ``target`` (one of :data:`TARGETS`), in the target's frame unless ``frame`` is given."""
     if target not in TARGETS:
-        raise ValueError(f"unknown export target {target!r}; choose one of {', '.join(TARGETS)}")
+        raise UsageError(f"unknown export target {target!r}; choose one of {', '.join(TARGETS)}")
     f = frame_named(frame) if frame is not None else DEFAULT_FRAMES[target]
     if target == "json":
         return export_json(sh, f)

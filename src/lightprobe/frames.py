@@ -15,6 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .errors import UsageError
+
 
 @dataclass(frozen=True)
 class Frame:
@@ -27,7 +29,7 @@ class Frame:
     def __post_init__(self) -> None:
         m = np.asarray(self.to_frame, dtype=np.float64)
         if m.shape != (3, 3) or not np.allclose(m @ m.T, np.eye(3), atol=1e-9):
-            raise ValueError(f"frame {self.name!r}: to_frame must be an orthogonal 3×3 matrix")
+            raise UsageError(f"frame {self.name!r}: to_frame must be an orthogonal 3×3 matrix")
         object.__setattr__(self, "to_frame", m)
 
     @property
@@ -71,7 +73,7 @@ def frame(name: str | Frame) -> Frame:
     try:
         return FRAMES[name]
     except KeyError:
-        raise ValueError(f"unknown frame {name!r}; known frames: {', '.join(FRAMES)}") from None
+        raise UsageError(f"unknown frame {name!r}; known frames: {', '.join(FRAMES)}") from None
 
 
 def rotation_x(deg: float) -> np.ndarray:
@@ -105,8 +107,10 @@ def rotation_from_ypr(yaw: float, pitch: float, roll: float) -> np.ndarray:
 def as_rotation(rotation: np.ndarray | tuple[float, float, float]) -> np.ndarray:
     """A 3×3 proper rotation from a matrix or a (yaw, pitch, roll) triple in degrees; refuses mirrors."""
     r = np.asarray(rotation, dtype=np.float64)
+    if not np.isfinite(r).all():
+        raise UsageError("a rotation must be finite numbers")
     if r.shape == (3,):
         return rotation_from_ypr(*r)
     if r.shape != (3, 3) or not np.allclose(r @ r.T, np.eye(3), atol=1e-6) or np.linalg.det(r) < 0:
-        raise ValueError("a rotation must be a proper orthogonal 3×3 matrix or (yaw, pitch, roll) in degrees")
+        raise UsageError("a rotation must be a proper orthogonal 3×3 matrix or (yaw, pitch, roll) in degrees")
     return r

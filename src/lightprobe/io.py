@@ -1,4 +1,4 @@
-"""Image files through OpenImageIO: read any HDR/LDR image as linear float32 RGB, write atomically.
+"""Image files: read any HDR/LDR image as linear float32 RGB through OpenImageIO; write atomically and checked.
 
 Reading (:func:`read_image`) returns the pixels exactly as stored (no repair of NaN or negative values; that is
 :mod:`lightprobe.envmap`'s job), as an (H, W, 3) float32 array, row 0 at the top:
@@ -7,31 +7,76 @@ Reading (:func:`read_image`) returns the pixels exactly as stored (no repair of 
   (opened with an empty ``ImageSpec`` so OpenImageIO does not flip its bottom-up rows), and any 8/16-bit image such
   as ``.png`` or ``.jpg``, whose sRGB encoding is decoded to linear.
 * One-channel images are repeated into grey RGB; alpha and other channels are dropped.
-* Headers claiming more than :data:`MAX_PIXELS` pixels (override with ``LIGHTPROBE_MAX_PIXELS``) are refused before
-  any pixel memory is allocated.
+* Only regular files are opened (a FIFO or a device would block or never end). The header is checked before any
+  pixel memory is allocated: the pixel limit and the memory budget of :mod:`lightprobe.limits` (a PNG of a few
+  hundred kB can claim 16384×8192 pixels), and a file too short to hold what its header claims.
+* What the image libraries print on stderr (libpng's warnings, libjpeg's errors) is captured, never shown: a
+  failure becomes one line, a success stays silent.
 
 Writing (:func:`write_image`) picks the format by extension: ``.exr`` (float32, or half with ``half=True``),
-``.hdr``, ``.pfm``, and ``.png``/``.jpg`` (tone-mapped with :func:`lightprobe.tonemap.tonemap`). Every write goes to a
-temporary file in the target folder first and is renamed over the target only when complete.
+``.hdr``, ``.pfm`` through OpenImageIO, and ``.png``/``.jpg`` (tone-mapped with :func:`lightprobe.tonemap.tonemap`)
+encoded in memory by Pillow — libjpeg, under OpenImageIO, ends the whole process when a write fails. Every write goes
+through :func:`lightprobe.files.atomic_path`: a temporary file, read back (HDR) or size-checked (LDR) before it is
+renamed over the target.
 """
 
 from __future__ import annotations
 
 import contextlib
+import io as _bytes_io
 import os
+import stat
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import OpenImageIO as oiio
 
-from .errors import InputError
+from .errors import InputError, UsageError
+from .files import atomic_path, write_bytes
+from .limits import check_memory, check_pixels
 from .tonemap import srgb_decode, to_uint8, tonemap
 
-MAX_PIXELS = int(os.environ.get("LIGHTPROBE_MAX_PIXELS", 16384 * 8192))
 HDR_WRITE_FORMATS = (".exr", ".hdr", ".pfm")
 LDR_WRITE_FORMATS = (".png", ".jpg", ".jpeg")
 WRITE_FORMATS = HDR_WRITE_FORMATS + LDR_WRITE_FORMATS
+HALF_MAX = 65504.0
+# The most raw (decoded, as the header's pixel type) bytes that one byte of a file can hold, for formats where that is
+# known exactly: Radiance RLE packs at most 127 equal bytes of a component into 2 (≤ 1/16 byte per float RGB pixel
+# of 12 bytes), PFM is raw, PNG is deflate (at most 1032:1). A file shorter than its header's raw size divided by
+# this cannot hold the pixels it claims, and is refused before the pixels are allocated. (EXR's PIZ and JPEG can
+# compress flat images further, so they get no such check; the memory budget still applies.)
+MAX_COMPRESSION = {".hdr": 192, ".pic": 192, ".rgbe": 192, ".pfm": 1, ".png": 1032}
+READ_BYTES_PER_PIXEL_BASE = 24  # float32 RGB result + its contiguous copy; plus 4 bytes per channel of the decode
+
+
+@contextlib.contextmanager
+def captured_stderr():
+    """Capture what C libraries write to file descriptor 2 during the block; yields a list that receives the text."""
+    captured: list[str] = []
+    try:
+        saved = os.dup(2)
+    except OSError:  # no stderr at all: nothing to capture
+        yield captured
+        return
+    with tempfile.TemporaryFile() as sink:
+        os.dup2(sink.fileno(), 2)
+        try:
+            yield captured
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            sink.seek(0)
+            captured.append(sink.read(1 << 16).decode("utf-8", "replace"))
+
+
+def _first_line(*texts: str) -> str:
+    for text in texts:
+        for line in (text or "").strip().splitlines():
+            if line.strip():
+                return line.strip()[:300]
+    return ""
 
 
 def _error_text(source=None) -> str:
@@ -43,34 +88,79 @@ def _error_text(source=None) -> str:
         text = (source.geterror() if source is not None else oiio.geterror()) or ""
     except UnicodeDecodeError:
         return "the image library reported an error it could not spell (the file is probably corrupt)"
-    lines = text.strip().splitlines()
-    return lines[0] if lines else ""
+    return _first_line(text)
+
+
+def check_regular_file(path: Path, what: str = "") -> None:
+    """Refuse a missing path, a folder, or anything that is not a regular file (FIFO, device, socket)."""
+    label = f"{what} {path}" if what else str(path)
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        raise InputError(f"cannot read {label}: no such file") from None
+    except OSError as e:
+        raise InputError(f"cannot read {label}: {e.strerror}") from None
+    if stat.S_ISDIR(mode):
+        raise InputError(f"cannot read {label}: it is a folder, not a file")
+    if not stat.S_ISREG(mode):
+        raise InputError(f"cannot read {label}: it is not a regular file (a FIFO, device or socket)")
+
+
+@dataclass(frozen=True)
+class ImageHeader:
+    width: int
+    height: int
+    channels: int
+    bytes_per_channel: int
+
+    @property
+    def pixels(self) -> int:
+        return self.width * self.height
+
+    def read_bytes(self) -> int:
+        """Estimated peak memory of reading the pixels as float32 RGB (the decode buffer and the result)."""
+        return self.pixels * (READ_BYTES_PER_PIXEL_BASE + 4 * self.channels)
 
 
 def _open(path: Path):
-    if not path.exists():
-        raise InputError(f"cannot read {path}: no such file")
-    if path.is_dir():
-        raise InputError(f"cannot read {path}: it is a folder, not an image")
+    check_regular_file(path)
     # An empty ImageSpec as configuration makes the PFM reader keep the file's row order meaning (see module doc).
     config = oiio.ImageSpec() if path.suffix.lower() == ".pfm" else None
-    inp = oiio.ImageInput.open(str(path), config) if config is not None else oiio.ImageInput.open(str(path))
+    with captured_stderr() as said:
+        inp = oiio.ImageInput.open(str(path), config) if config is not None else oiio.ImageInput.open(str(path))
     if inp is None:
-        raise InputError(f"cannot read {path}: {_error_text() or 'not an image format OpenImageIO knows'}")
+        reason = _error_text() or _first_line(*said) or "not an image format OpenImageIO knows"
+        raise InputError(f"cannot read {path}: {reason}")
     return inp
 
 
-def _check_spec(path: Path, spec) -> None:
+def _header(path: Path, spec) -> ImageHeader:
     w, h, c, depth = spec.width, spec.height, spec.nchannels, max(spec.depth, 1)
     if w < 1 or h < 1 or c < 1:
         raise InputError(f"cannot read {path}: the header gives an empty image ({w}×{h}, {c} channels)")
-    if w * h * depth > MAX_PIXELS or c > 64:
-        raise InputError(
-            f"refusing {path}: the header claims {w}×{h}×{depth} pixels with {c} channels, over the limit of "
-            f"{MAX_PIXELS} pixels (set LIGHTPROBE_MAX_PIXELS to raise it)"
-        )
+    if c > 64:
+        raise InputError(f"refusing {path}: the header claims {c} channels")
+    check_pixels(w * h * depth, f"{path} ({w}×{h}×{depth} pixels claimed by its header)")
     if depth > 1:
         raise InputError(f"cannot read {path}: volume images (depth {depth}) are not environment maps")
+    header = ImageHeader(w, h, c, max(spec.format.size(), 1))
+    raw = header.pixels * c * header.bytes_per_channel
+    size = path.stat().st_size
+    ratio = MAX_COMPRESSION.get(path.suffix.lower())
+    if ratio is not None and size * ratio < raw:
+        raise InputError(f"cannot read {path}: the header claims {w}×{h} pixels, more than a file of {size} bytes "
+                         "can hold (truncated or corrupt)")
+    return header
+
+
+def image_header(path: str | os.PathLike) -> ImageHeader:
+    """Size and channels of an image file from its header alone (checked as :func:`read_image` checks it)."""
+    path = Path(path)
+    inp = _open(path)
+    try:
+        return _header(path, inp.spec())
+    finally:
+        inp.close()
 
 
 def _rgb_channels(spec) -> list[int]:
@@ -91,17 +181,23 @@ def _is_display_encoded(spec) -> bool:
     return not ("linear" in colorspace or colorspace.startswith("lin_"))
 
 
-def read_image(path: str | os.PathLike) -> np.ndarray:
-    """Read an image file as linear float32 RGB of shape (H, W, 3), row 0 at the top. See the module docstring."""
+def read_image(path: str | os.PathLike, working_bytes_per_pixel: int = 0) -> np.ndarray:
+    """Read an image file as linear float32 RGB of shape (H, W, 3), row 0 at the top. See the module docstring.
+
+    ``working_bytes_per_pixel``: memory the caller will need per pixel of this image beyond the read itself; the
+    sum is checked against the memory budget before any pixel is decoded."""
     path = Path(path)
     inp = _open(path)
     try:
         spec = inp.spec()
-        _check_spec(path, spec)
-        pixels = inp.read_image(0, 0, 0, spec.nchannels, "float")
-        trouble = _error_text(inp) or _error_text()
+        header = _header(path, spec)
+        check_memory(header.read_bytes() + header.pixels * working_bytes_per_pixel,
+                     f"{path} ({header.width}×{header.height} pixels)")
+        with captured_stderr() as said:
+            pixels = inp.read_image(0, 0, 0, spec.nchannels, "float")
+            trouble = _error_text(inp) or _error_text()
         if pixels is None or trouble:  # some readers report damage yet hand back (partly zero) pixels: refuse them
-            raise InputError(f"cannot read {path}: {trouble or 'the pixel data is unreadable'}")
+            raise InputError(f"cannot read {path}: {trouble or _first_line(*said) or 'the pixel data is unreadable'}")
     finally:
         inp.close()
     pixels = np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, spec.nchannels)
@@ -109,32 +205,37 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     return srgb_decode(rgb) if _is_display_encoded(spec) else rgb
 
 
-@contextlib.contextmanager
-def atomic_path(path: str | os.PathLike):
-    """Yield a temporary path beside ``path`` (same extension); rename it onto ``path`` only if the block succeeds."""
-    path = Path(path)
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise InputError(f"cannot write {path}: folder {folder} does not exist")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=f".tmp{path.suffix}", dir=folder)
-    os.close(fd)
-    try:
-        yield Path(tmp)
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600 files; give the result the usual permissions
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
+def _check_rgb(rgb) -> np.ndarray:
+    rgb = np.asarray(rgb, dtype=np.float32)
+    if rgb.ndim != 3 or rgb.shape[2] != 3 or rgb.shape[0] < 1 or rgb.shape[1] < 1:
+        raise UsageError(f"write_image expects an (H, W, 3) array, got shape {rgb.shape}")
+    return rgb
 
 
-def _umask() -> int:
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
+def _encode_ldr(path: Path, display: np.ndarray) -> bytes:
+    """8-bit sRGB PNG or JPEG bytes, encoded in memory (so a failing disk cannot end the process)."""
+    from PIL import Image
+
+    buffer = _bytes_io.BytesIO()
+    image = Image.fromarray(to_uint8(display), "RGB")
+    if path.suffix.lower() == ".png":
+        image.save(buffer, "PNG", compress_level=6)
+    else:
+        image.save(buffer, "JPEG", quality=95)
+    return buffer.getvalue()
 
 
-HALF_MAX = 65504.0
+def _read_back(path: Path, expected: np.ndarray, exact: bool):
+    """A verifier for :func:`atomic_path`: the temporary file must decode to ``expected``'s shape (and values)."""
+    def verify(tmp: Path) -> None:
+        try:
+            back = read_image(tmp)
+        except InputError as e:
+            raise InputError(f"cannot write {path}: the written file does not read back "
+                             f"({str(e).split(': ', 1)[-1]})") from None
+        if back.shape != expected.shape or (exact and not np.array_equal(back, expected, equal_nan=True)):
+            raise InputError(f"cannot write {path}: the written file does not read back as written")
+    return verify
 
 
 def write_image(
@@ -145,42 +246,44 @@ def write_image(
     exposure: float = 0.0,
     curve: str = "srgb",
     encoded: bool = False,
+    inputs=(),
 ) -> Path:
     """Write linear RGB (H, W, 3) to ``path``; the extension picks the format (see the module docstring).
 
     HDR formats store the values as given (``exposure``/``curve`` apply only to ``.png``/``.jpg``; ``encoded``
-    says the values are display-encoded already, to be written to 8 bits as they are). Returns the path.
+    says the values are display-encoded already, to be written to 8 bits as they are). ``inputs``: files this
+    output must not overwrite. Returns the path.
     """
     path = Path(path)
     ext = path.suffix.lower()
     if ext not in WRITE_FORMATS:
-        raise InputError(f"cannot write {path}: unknown image format {ext or '(none)'}; use one of {WRITE_FORMATS}")
-    rgb = np.asarray(rgb, dtype=np.float32)
-    if rgb.ndim != 3 or rgb.shape[2] != 3:
-        raise ValueError(f"write_image expects an (H, W, 3) array, got {rgb.shape}")
-    h, w = rgb.shape[:2]
+        raise InputError(f"cannot write {path}: unknown image format {ext or '(none)'}; use one of "
+                         f"{', '.join(WRITE_FORMATS)}")
+    rgb = _check_rgb(rgb)
+    if ext in LDR_WRITE_FORMATS:
+        display = np.clip(np.nan_to_num(rgb), 0, 1) if encoded else tonemap(rgb, exposure, curve)
+        return write_bytes(path, _encode_ldr(path, display), inputs)
     if half and ext == ".exr" and np.nanmax(np.abs(rgb), initial=0.0) > HALF_MAX:
         raise InputError(
             f"cannot write {path} as half floats: values up to {np.nanmax(rgb):.6g} exceed the half range "
             f"({HALF_MAX:g}) and would become infinite; write float32 instead"
         )
-    if ext in LDR_WRITE_FORMATS:
-        display = np.clip(np.nan_to_num(rgb), 0, 1) if encoded else tonemap(rgb, exposure, curve)
-        pixels, pixel_type = to_uint8(display), "uint8"
-    else:
-        pixels, pixel_type = np.ascontiguousarray(rgb), ("half" if half and ext == ".exr" else "float")
+    h, w = rgb.shape[:2]
+    pixels = np.ascontiguousarray(rgb)
+    pixel_type = "half" if half and ext == ".exr" else "float"
     spec = oiio.ImageSpec(w, h, 3, pixel_type)
     if ext == ".exr":
         spec.attribute("compression", "zip")
-    if ext in LDR_WRITE_FORMATS:
-        spec.attribute("oiio:ColorSpace", "sRGB")
-    with atomic_path(path) as tmp:
-        out = oiio.ImageOutput.create(str(tmp))
-        if out is None or not out.open(str(tmp), spec):
-            raise InputError(f"cannot write {path}: {_error_text(out) or _error_text() or 'OpenImageIO refused it'}")
-        ok = out.write_image(pixels)
-        err = _error_text(out)
-        out.close()
-        if not ok:
-            raise InputError(f"cannot write {path}: {err or 'write failed'}")
+    expected = pixels.astype(np.float16).astype(np.float32) if pixel_type == "half" else pixels
+    with atomic_path(path, inputs, verify=_read_back(path, expected, exact=ext != ".hdr")) as tmp:
+        with captured_stderr() as said:
+            out = oiio.ImageOutput.create(str(tmp))
+            if out is None or not out.open(str(tmp), spec):
+                reason = _error_text(out) if out is not None else ""
+                raise InputError(f"cannot write {path}: {reason or _error_text() or 'OpenImageIO refused it'}")
+            ok = out.write_image(pixels)
+            err = _error_text(out)
+            closed = out.close()
+        if not ok or not closed:
+            raise InputError(f"cannot write {path}: {err or _first_line(*said) or 'write failed'}")
     return path

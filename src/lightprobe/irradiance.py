@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .errors import UsageError
 from .envmap import EnvMap
 from .kernels import clamped_cosine_sums
 from .layouts import Layout, layout as layout_named
@@ -57,7 +58,7 @@ def irradiance_matrices(sh: SHCoeffs) -> np.ndarray:
 
     Needs radiance coefficients with l_max ≥ 2 (only bands ≤ 2 enter)."""
     if sh.quantity != "radiance" or sh.l_max < 2:
-        raise ValueError("the matrix form needs radiance coefficients up to band 2 at least")
+        raise UsageError("the matrix form needs radiance coefficients up to band 2 at least")
     L = sh.coeffs  # noqa: N806 - the paper's notation
     i = {name: k for k, name in enumerate(["00", "1-1", "10", "11", "2-2", "2-1", "20", "21", "22"])}
 
@@ -117,7 +118,7 @@ def irradiance_map(env: EnvMap, target: str | Layout, size: int, method: str = "
     elif method == "brute":
         values = brute_irradiance(env, normals)
     else:
-        raise ValueError(f"unknown method {method!r}; use sh or brute")
+        raise UsageError(f"unknown method {method!r}; use sh or brute")
     return IrradianceMap(np.where(valid[..., None], values, 0.0).astype(np.float32), lay, method)
 
 

@@ -17,12 +17,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from functools import lru_cache
-from math import factorial, pi, sqrt
+from math import comb, factorial, pi, sqrt
 
 import numpy as np
 from numba import njit, prange
 
 from .envmap import EnvMap
+from .errors import UsageError
 from .frames import WORLD, Frame, frame as frame_named
 from .layouts import LatLong
 
@@ -55,7 +56,7 @@ def name(i: int) -> str:
 def l_max_of(n: int) -> int:
     l = int(round(np.sqrt(n))) - 1
     if (l + 1) ** 2 != n:
-        raise ValueError(f"{n} is not a number of SH coefficients (a square)")
+        raise UsageError(f"{n} is not a number of SH coefficients (a square)")
     return l
 
 
@@ -103,7 +104,15 @@ def normalisation(l: int, m: int) -> float:
 
 
 def a_hat(l: int) -> float:
-    """Â_l, the SH coefficients of the clamped cosine (paper eqs. 8–9): π, 2π/3, π/4, 0, −π/24, 0, π/64, …"""
+    """Â_l, the SH coefficients of the clamped cosine (paper eqs. 8–9): π, 2π/3, π/4, 0, −π/24, 0, π/64, …
+
+    For even l ≥ 2, Â_l = 2π (−1)^(l/2−1) / ((l+2)(l−1)) · l! / (2^l (l/2)!²), and l! / (l/2)!² = C(l, l/2). The
+    binomial and 2^l are formed as exact Python integers and divided once (correctly rounded), so the value is
+    right at any order; numpy's int64 (the old ``2**l`` on a numpy integer) overflows from l = 63 and silently
+    gave Â_24 = 1522.9 instead of −0.0017 through the float factorials."""
+    l = int(l)
+    if l < 0:
+        raise UsageError(f"Â_l needs l ≥ 0, got {l}")
     if l == 0:
         return pi
     if l == 1:
@@ -111,7 +120,7 @@ def a_hat(l: int) -> float:
     if l % 2:
         return 0.0
     h = l // 2
-    return 2 * pi * (-1) ** (h - 1) / ((l + 2) * (l - 1)) * factorial(l) / (2**l * factorial(h) ** 2)
+    return 2 * pi * (-1) ** (h - 1) / ((l + 2) * (l - 1)) * (comb(l, h) / (1 << l))
 
 
 def a_hat_per_coefficient(l_max: int) -> np.ndarray:
@@ -171,7 +180,7 @@ def window_weights(kind: str, l_max: int, width: float | None = None) -> np.ndar
         return np.where(l < w, 0.5 * (1 + np.cos(np.pi * l / w)), 0.0)
     if kind == "lanczos":
         return np.where(l < w, np.sinc(l / w), 0.0)
-    raise ValueError(f"unknown window {kind!r}; choose one of {', '.join(WINDOWS)}")
+    raise UsageError(f"unknown window {kind!r}; choose one of {', '.join(WINDOWS)}")
 
 
 # ---- the coefficient type -------------------------------------------------------------------------------------------
@@ -195,7 +204,9 @@ class SHCoeffs:
             c = c[:, None]
         l_max_of(c.shape[0])
         if self.quantity not in QUANTITIES:
-            raise ValueError(f"unknown quantity {self.quantity!r}; one of {QUANTITIES}")
+            raise UsageError(f"unknown quantity {self.quantity!r}; one of {QUANTITIES}")
+        if not np.isfinite(c).all():
+            raise UsageError("SH coefficients must be finite numbers (found NaN or infinity)")
         c.setflags(write=False)
         object.__setattr__(self, "coeffs", c)
 
@@ -214,7 +225,7 @@ class SHCoeffs:
     def to_irradiance(self) -> SHCoeffs:
         """E_lm = Â_l L_lm (paper eq. 7). Refuses coefficients that already are irradiance."""
         if self.quantity != "radiance":
-            raise ValueError(f"these coefficients are already {self.quantity}; convolving twice is an error")
+            raise UsageError(f"these coefficients are already {self.quantity}; convolving twice is an error")
         return replace(self, coeffs=self.coeffs * a_hat_per_coefficient(self.l_max)[:, None], quantity="irradiance")
 
     def to_frame(self, target: str | Frame) -> SHCoeffs:
@@ -264,7 +275,7 @@ def auto_window(sh: SHCoeffs, samples: int = 16384) -> SHCoeffs:
     ``samples`` well-spread normals is not monotone in the width W, so W is scanned from wide to narrow (steps of
     3 %) and the first width that works is refined by bisection against the last one that failed."""
     if sh.quantity != "radiance":
-        raise ValueError("the auto window needs radiance coefficients")
+        raise UsageError("the auto window needs radiance coefficients")
     y = basis(sh.l_max, sh.frame.from_world(_sample_directions(samples)))  # evaluated once for the whole search
     bands = band_of_each(sh.l_max)
     convolved = sh.coeffs * a_hat_per_coefficient(sh.l_max)[:, None]
@@ -501,8 +512,8 @@ def project(env: EnvMap, l_max: int = 2, frame: str | Frame = WORLD, fast: bool 
     Lat-long maps use the separable row-sum kernels (one pass over the pixels, O(S·l_max) work; above order 2 they
     need W divisible by 4); every other map evaluates the basis at its pixel directions. Both compute the same sum.
     """
-    if l_max < 0:
-        raise ValueError("l_max must be ≥ 0")
+    if not isinstance(l_max, (int, np.integer)) or l_max < 0:
+        raise UsageError(f"the SH order l_max must be a whole number ≥ 0, got {l_max!r}")
     if fast and isinstance(env.layout, LatLong) and (l_max <= 2 or env.grid[1] % 4 == 0):
         coeffs = _project_latlong(env, l_max)
     else:

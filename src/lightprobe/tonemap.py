@@ -10,7 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from .errors import UsageError
+
 CURVES = ("srgb", "aces")
+
 
 
 def srgb_encode(linear: np.ndarray) -> np.ndarray:
@@ -34,7 +37,7 @@ def aces_filmic(linear: np.ndarray) -> np.ndarray:
 def tonemap(radiance: np.ndarray, exposure: float = 0.0, curve: str = "srgb") -> np.ndarray:
     """Linear radiance → display-encoded float values in [0, 1] (NaN and negative values show as black)."""
     if curve not in CURVES:
-        raise ValueError(f"unknown tone curve {curve!r}; choose one of {', '.join(CURVES)}")
+        raise UsageError(f"unknown tone curve {curve!r}; choose one of {', '.join(CURVES)}")
     x = np.nan_to_num(np.asarray(radiance, dtype=np.float32), nan=0.0, posinf=0.0, neginf=0.0) * 2.0**exposure
     if curve == "aces":
         x = aces_filmic(x)

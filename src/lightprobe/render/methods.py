@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import UsageError
 from ..irradiance import brute_irradiance
 from ..sh import SHCoeffs, project
 from .raycast import Hits, Tracer
@@ -40,13 +41,16 @@ class SHMethod(Method):
 
     def __init__(self, order: int = 2, per_vertex: bool = False, window: str = "none"):
         self.order, self.per_vertex, self.window = order, per_vertex, window
-        self._cache: tuple[int, SHCoeffs] | None = None
+        self._cache: tuple[object, SHCoeffs] | None = None
 
     def coefficients(self, scene: Scene) -> SHCoeffs:
-        """Irradiance coefficients of the scene's environment (projected once per environment)."""
-        if self._cache is None or self._cache[0] != id(scene.environment):
+        """Irradiance coefficients of the scene's environment (projected once per environment).
+
+        The cache holds the environment itself and compares identity: an ``id()`` alone can be reused by a new
+        map once the old one is freed, which served one map's coefficients for another."""
+        if self._cache is None or self._cache[0] is not scene.environment:
             sh = project(scene.environment, self.order).windowed(self.window).to_irradiance()
-            self._cache = (id(scene.environment), sh)
+            self._cache = (scene.environment, sh)
         return self._cache[1]
 
     def shade(self, scene, tracer, hits):
@@ -92,5 +96,5 @@ def method(name: str, **options) -> Method:
     try:
         cls = METHODS[name]
     except KeyError:
-        raise ValueError(f"unknown method {name!r}; known: {', '.join(METHODS)}") from None
+        raise UsageError(f"unknown method {name!r}; known: {', '.join(METHODS)}") from None
     return cls(**options)

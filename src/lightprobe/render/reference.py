@@ -134,18 +134,54 @@ def scene_dict(mi, scene: Scene, folder: Path, spp: int, global_illumination: bo
     return d
 
 
+REFERENCE_BYTES_PER_PIXEL = 96  # Mitsuba's film (RGBA + weight, float32), its tensor and our float32 copy
+BYTES_PER_TRIANGLE = 200  # our arrays, the PLY written for Mitsuba, and Mitsuba's own copy with its BVH
+BASE_BYTES = 600 << 20  # Python with Mitsuba and Dr.Jit's LLVM backend loaded
+
+
+def reference_memory(scene: Scene) -> int:
+    """Estimated peak memory (bytes) of :func:`reference_render` (measured in tests/test_limits.py)."""
+    cam = scene.camera
+    return (BASE_BYTES + cam.width * cam.height * REFERENCE_BYTES_PER_PIXEL
+            + scene.triangle_count * BYTES_PER_TRIANGLE + scene.environment.data.size * 16)
+
+
+def _sweep_stale_folders() -> None:
+    """Remove scene folders of earlier runs that died before removing theirs (a crash inside Mitsuba, kill -9)."""
+    import os
+    import re
+    import shutil
+
+    from ..files import _process_alive
+
+    root = Path(tempfile.gettempdir())
+    for entry in root.glob("lightprobe-mitsuba-*"):
+        match = re.match(r"lightprobe-mitsuba-(\d+)-", entry.name)
+        if match and int(match.group(1)) != os.getpid() and not _process_alive(int(match.group(1))):
+            shutil.rmtree(entry, ignore_errors=True)
+
+
 def reference_render(scene: Scene, spp: int = 64, global_illumination: bool = False, seed: int = 0,
                      variant: str | None = None) -> Rendering:
-    """Path-trace ``scene`` with Mitsuba 3: radiance (H, W, 3), ``spp`` samples per pixel."""
+    """Path-trace ``scene`` with Mitsuba 3: radiance (H, W, 3), ``spp`` samples per pixel.
+
+    The estimated memory is checked against the budget before Mitsuba starts (under a memory cap it crashes the
+    process instead of raising). The scene's files live in a temporary folder only while Mitsuba loads them."""
+    import os
+
+    from ..limits import check_memory
+
     if not 1 <= spp <= 1 << 16:
         raise LightprobeError("reference samples per pixel must be within 1..65536")
+    check_memory(reference_memory(scene), f"the Mitsuba reference of {scene.camera.width}x{scene.camera.height}")
     mi = mitsuba(variant)
+    _sweep_stale_folders()
     t0 = time.perf_counter()
-    with tempfile.TemporaryDirectory(prefix="lightprobe-mitsuba-") as tmp:
+    with tempfile.TemporaryDirectory(prefix=f"lightprobe-mitsuba-{os.getpid()}-") as tmp:
         loaded = mi.load_dict(scene_dict(mi, scene, Path(tmp), spp, global_illumination, seed))
-        t_load = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        image = np.array(mi.render(loaded, spp=spp, seed=seed), dtype=np.float32)[..., :3]
+    t_load = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    image = np.array(mi.render(loaded, spp=spp, seed=seed), dtype=np.float32)[..., :3]
     transport = "global illumination" if global_illumination else "direct lighting"
     return Rendering(image, np.ones(image.shape[:2], np.float32),
                      f"Mitsuba {mi.__version__} {mi.variant()}, {transport}, {spp} spp",
@@ -162,5 +198,6 @@ def reference_coverage(scene: Scene, spp: int = 64, seed: int = 0, variant: str 
     with tempfile.TemporaryDirectory(prefix="lightprobe-mitsuba-") as tmp:
         d = scene_dict(mi, white, Path(tmp), spp, False, seed)
         d["integrator"] = {"type": "aov", "aovs": "a:albedo"}
-        image = np.array(mi.render(mi.load_dict(d), spp=spp, seed=seed), dtype=np.float32)
+        loaded = mi.load_dict(d)
+    image = np.array(mi.render(loaded, spp=spp, seed=seed), dtype=np.float32)
     return image[..., -3:].mean(axis=-1)

@@ -11,6 +11,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import UsageError
+from ..limits import check_memory
 from .methods import Method
 from .raycast import Tracer
 from .scene import Scene
@@ -27,10 +29,26 @@ class Rendering:
     seconds: dict[str, float] = field(default_factory=dict)
 
 
+# Peak bytes per camera sample: rays, hits with their attributes, shading temporaries (measured in
+# tests/test_limits.py), and per triangle: our arrays and Embree's BVH.
+BYTES_PER_SAMPLE = 900
+BYTES_PER_TRIANGLE = 200
+BASE_BYTES = 450 << 20
+
+
+def render_memory(scene: Scene, spp: int) -> int:
+    """Estimated peak memory (bytes) of :func:`render` with spp × spp samples per pixel."""
+    samples = scene.camera.width * scene.camera.height * spp * spp
+    return BASE_BYTES + samples * BYTES_PER_SAMPLE + scene.triangle_count * BYTES_PER_TRIANGLE
+
+
 def render(scene: Scene, method: Method, spp: int = 1, tracer: Tracer | None = None) -> Rendering:
-    """Render ``scene`` lit by ``method``; ``spp`` is the per-axis supersampling (spp² samples per pixel)."""
+    """Render ``scene`` lit by ``method``; ``spp`` is the per-axis supersampling (spp² samples per pixel). The
+    estimated memory is checked against the budget (:mod:`lightprobe.limits`) before any ray is cast."""
     if not 1 <= spp <= 16:
-        raise ValueError("spp must be within 1..16")
+        raise UsageError("spp must be within 1..16")
+    check_memory(render_memory(scene, spp), f"rendering {scene.camera.width}x{scene.camera.height} at {spp}x{spp} "
+                                            "samples per pixel")
     seconds = {}
     t0 = time.perf_counter()
     tracer = tracer or Tracer(scene)

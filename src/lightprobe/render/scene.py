@@ -1,21 +1,9 @@
 """Scenes: meshes with diffuse materials, an optional ground plane, a pinhole camera, and an environment map as the
-only light (visible as the background).
+only light (visible as the background). Scene files are read by :mod:`lightprobe.render.scenefile`.
 
 Conventions: world frame of :mod:`lightprobe.frames` (+Y up, the default camera looks along −Z). Lengths are in the
-meshes' own units. A scene file is YAML or JSON::
-
-    probe: path/to/probe.hdr            # optional; default: the shipped probe (paths relative to the file)
-    rotate: [0, 0, 0]                   # optional yaw, pitch, roll of the environment, degrees
-    camera: {eye: [0, 0.6, 2.2], target: [0, 0.3, 0], up: [0, 1, 0], fov: 35, width: 256, height: 256}
-    meshes:
-      - {file: bunny.ply, albedo: [0.8, 0.8, 0.8], fit: 0.8, place_on_ground: true, rotate: [0, 0, 0]}
-      - {shape: sphere, albedo: [0.7, 0.7, 0.7], radius: 0.3, center: [0.5, 0.3, 0]}
-    ground: {albedo: [0.5, 0.5, 0.5], size: 20, height: 0}     # or ground: false
-    background: true
-
-``fit`` scales a mesh so its largest extent is that many units and centres it on x and z; ``place_on_ground`` sets
-its lowest point on the ground plane. Albedo is linear RGB reflectance in [0, 1]; ``texture`` (an image file) with
-the mesh's UVs overrides it.
+meshes' own units. Every mesh is checked when it is made — after loading and after every transform — so a NaN
+scale or fit can never make geometry silently vanish.
 """
 
 from __future__ import annotations
@@ -27,11 +15,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..envmap import EnvMap, read_envmap
-from ..errors import InputError, LightprobeError
+from ..envmap import EnvMap
+from ..errors import BudgetError, InputError, LightprobeError, short
 from ..frames import as_rotation
-
-MAX_TRIANGLES = 20_000_000
+from ..io import check_regular_file
+from ..limits import max_triangles
 
 
 @dataclass(frozen=True)
@@ -88,8 +76,8 @@ class Material:
 
     def __post_init__(self) -> None:
         a = np.asarray(self.albedo, dtype=np.float64)
-        if a.shape != (3,) or (a < 0).any() or (a > 1).any():
-            raise LightprobeError(f"albedo must be three numbers in [0, 1], got {self.albedo}")
+        if a.shape != (3,) or not np.isfinite(a).all() or (a < 0).any() or (a > 1).any():
+            raise LightprobeError(f"albedo must be three numbers in [0, 1], got {short(self.albedo)}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -102,6 +90,12 @@ class MeshInstance:
     material: Material = Material()
     uv: np.ndarray | None = None  # (V, 2), v up (OpenGL/OBJ convention)
     name: str = "mesh"
+
+    def __post_init__(self) -> None:
+        for what, values in (("vertices", self.vertices), ("normals", self.normals), ("UVs", self.uv)):
+            if values is not None and not np.isfinite(values).all():
+                raise LightprobeError(f"{self.name}: {what} contain NaN or infinite numbers (check scale, fit and "
+                                      "rotate)")
 
 
 @dataclass(frozen=True, eq=False)
@@ -139,8 +133,6 @@ def mesh_instance(vertices, faces, material: Material = Material(), normals=None
         raise LightprobeError(f"{name}: a mesh needs (V, 3) vertices and (F, 3) triangles")
     if f.min() < 0 or f.max() >= len(v):
         raise LightprobeError(f"{name}: triangle indices out of range")
-    if not np.isfinite(v).all():
-        raise LightprobeError(f"{name}: vertices contain NaN or infinite coordinates")
     n = _vertex_normals(v, f) if normals is None else np.asarray(normals, dtype=np.float64)
     return MeshInstance(v, f, n, material, None if uv is None else np.asarray(uv, dtype=np.float64), name)
 
@@ -150,8 +142,7 @@ def load_mesh(path: str | os.PathLike, material: Material = Material()) -> MeshI
     import trimesh
 
     path = Path(path)
-    if not path.is_file():
-        raise InputError(f"cannot read mesh {path}: no such file")
+    check_regular_file(path, "mesh")
     try:
         loaded = trimesh.load(str(path), force="mesh", process=False)
     except Exception as e:  # trimesh raises many kinds of errors for bad files
@@ -159,8 +150,9 @@ def load_mesh(path: str | os.PathLike, material: Material = Material()) -> MeshI
             from None
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
         raise InputError(f"cannot read mesh {path}: no triangles in it")
-    if len(loaded.faces) > MAX_TRIANGLES:
-        raise InputError(f"refusing mesh {path}: {len(loaded.faces)} triangles is over {MAX_TRIANGLES}")
+    if len(loaded.faces) > max_triangles():
+        raise BudgetError(f"refusing mesh {path}: {len(loaded.faces)} triangles is over the limit of "
+                          f"{max_triangles()} (set LIGHTPROBE_MAX_TRIANGLES to raise it)")
     uv = getattr(loaded.visual, "uv", None)
     texture = None
     if uv is not None and material.texture is None:
@@ -182,11 +174,17 @@ def transformed(mesh: MeshInstance, scale: float = 1.0, rotation=None, translate
 
 def fitted(mesh: MeshInstance, size: float, on_ground: bool = True, ground_height: float = 0.0) -> MeshInstance:
     """Scale so the largest extent is ``size``, centre on x and z, and (optionally) stand it on the ground."""
+    if not (np.isfinite(size) and size > 0):
+        raise LightprobeError(f"{mesh.name}: fit must be a positive number, got {size!r}")
     lo, hi = mesh.vertices.min(axis=0), mesh.vertices.max(axis=0)
     s = size / max(float((hi - lo).max()), 1e-12)
     centre = (lo + hi) / 2 * s
     lift = ground_height - lo[1] * s if on_ground else -centre[1]
     return transformed(mesh, s, None, (-centre[0], lift, -centre[2]))
+
+
+SPHERE_TRIANGLES = 20 * 4**5  # an icosphere of 5 subdivisions
+TORUS_TRIANGLES = 2 * 96 * 48
 
 
 def sphere(radius: float = 0.5, center=(0.0, 0.0, 0.0), material: Material = Material(),
@@ -266,86 +264,3 @@ def sphere_scene(environment: EnvMap, size: int = 64, fov: float = 30.0) -> Scen
     camera = Camera(eye=(0.0, 0.0, distance), target=(0.0, 0.0, 0.0), fov=fov, width=size, height=size)
     return Scene((sphere(1.0, (0, 0, 0), Material((1.0, 1.0, 1.0)), subdivisions=6),), camera, environment, True,
                  "unshadowed sphere")
-
-
-def load_scene(path: str | os.PathLike, environment: EnvMap | None = None) -> Scene:
-    """A scene from a YAML or JSON file (see the module docstring); ``environment`` overrides its ``probe``."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"cannot read scene {path}: no such file")
-    text = path.read_text(encoding="utf-8", errors="replace")
-    try:
-        if path.suffix.lower() == ".json":
-            spec = json.loads(text)
-        else:
-            import yaml
-
-            spec = yaml.safe_load(text)
-    except Exception as e:
-        raise InputError(f"cannot read scene {path}: {str(e).splitlines()[0]}") from None
-    if not isinstance(spec, dict):
-        raise InputError(f"cannot read scene {path}: expected a mapping at the top level")
-    return scene_from_dict(spec, path.parent, environment, path.stem)
-
-
-def _vec(value, n: int, what: str) -> tuple[float, ...]:
-    try:
-        v = tuple(float(x) for x in value)
-    except (TypeError, ValueError):
-        v = ()
-    if len(v) != n or not all(np.isfinite(v)):
-        raise InputError(f"scene: {what} must be {n} numbers, got {value!r}")
-    return v
-
-
-def scene_from_dict(spec: dict, base: Path, environment: EnvMap | None = None, name: str = "scene") -> Scene:
-    from ..data import default_probe_path
-
-    if environment is None:
-        probe = spec.get("probe")
-        environment = read_envmap(base / probe if probe else default_probe_path())
-    if spec.get("rotate") is not None:
-        environment = environment.rotated(_vec(spec["rotate"], 3, "rotate"))
-    cam = spec.get("camera") or {}
-    camera = Camera(
-        eye=_vec(cam.get("eye", Camera.eye), 3, "camera.eye"), target=_vec(cam.get("target", Camera.target), 3,
-                                                                          "camera.target"),
-        up=_vec(cam.get("up", Camera.up), 3, "camera.up"), fov=float(cam.get("fov", Camera.fov)),
-        width=int(cam.get("width", Camera.width)), height=int(cam.get("height", Camera.height)))
-    ground = spec.get("ground", {"albedo": [0.5, 0.5, 0.5]})
-    height = float(ground.get("height", 0.0)) if isinstance(ground, dict) else 0.0
-    meshes = []
-    for i, entry in enumerate(spec.get("meshes") or []):
-        if not isinstance(entry, dict):
-            raise InputError(f"scene: meshes[{i}] must be a mapping")
-        material = Material(_vec(entry.get("albedo", (0.8, 0.8, 0.8)), 3, f"meshes[{i}].albedo"))
-        if "texture" in entry:
-            from ..io import read_image
-
-            material = Material(material.albedo, read_image(base / entry["texture"]))
-        if entry.get("shape") == "sphere":
-            mesh = sphere(float(entry.get("radius", 0.5)), _vec(entry.get("center", (0, 0.5, 0)), 3, "center"),
-                          material)
-        elif entry.get("shape") == "torus":
-            mesh = torus(float(entry.get("major", 0.35)), float(entry.get("minor", 0.12)),
-                         _vec(entry.get("center", (0, 0.12, 0)), 3, "center"), material)
-        elif "file" in entry:
-            mesh = load_mesh(base / entry["file"], material)
-            if entry.get("rotate") is not None:
-                mesh = transformed(mesh, 1.0, _vec(entry["rotate"], 3, "rotate"))
-            if entry.get("fit") is not None:
-                mesh = fitted(mesh, float(entry["fit"]), bool(entry.get("place_on_ground", True)), height)
-            if entry.get("scale") is not None or entry.get("translate") is not None:
-                mesh = transformed(mesh, float(entry.get("scale", 1.0)), None,
-                                   _vec(entry.get("translate", (0, 0, 0)), 3, "translate"))
-        else:
-            raise InputError(f"scene: meshes[{i}] needs a file or a shape (sphere, torus)")
-        meshes.append(mesh)
-    if ground:
-        albedo = _vec(ground.get("albedo", (0.5, 0.5, 0.5)), 3, "ground.albedo") if isinstance(ground, dict) else (
-            0.5, 0.5, 0.5)
-        size = float(ground.get("size", 20.0)) if isinstance(ground, dict) else 20.0
-        meshes.append(ground_plane(size, height, Material(albedo)))
-    if not meshes:
-        raise InputError("scene: nothing to render (no meshes and no ground)")
-    return Scene(tuple(meshes), camera, environment, bool(spec.get("background", True)), name)

@@ -1,0 +1,97 @@
+"""The ``lightprobe`` command: a thin layer over the Python API (argparse; rich for tables), one module a command.
+
+Every error caused by the input or the command line prints one line ``lightprobe: error: …`` on stderr and exits
+with status 2, with no traceback and no partial output file; warnings print one line ``lightprobe: warning: …``
+(once per message; numpy's own runtime warnings are not shown). SIGTERM and SIGHUP end the command cleanly
+(temporary files removed) with status 128 + the signal number. Each command module has ``register(sub)`` adding its
+parser and ``run(args)`` doing the work; a new command adds a module and a line in :data:`COMMANDS`.
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # idle OpenBLAS threads spin and slow numba's parallel kernels
+
+import signal
+import sys
+import warnings
+
+from ..errors import LightprobeError
+from . import compare, convert, demo, design, error, export, info, irradiance, render, sh
+from .common import Parser
+
+COMMANDS = [info, convert, sh, irradiance, error, export, design, render, compare, demo]
+
+
+def build_parser() -> Parser:
+    parser = Parser(prog="lightprobe",
+                    description="HDR environment maps (light probes) → lighting for real-time renderers, "
+                                "checked against ground truth.")
+    parser.add_argument("--version", action="version", version=f"lightprobe {_version()}")
+    sub = parser.add_subparsers(title="commands", metavar="COMMAND", parser_class=Parser)
+    for command in COMMANDS:
+        command.register(sub)
+    return parser
+
+
+def _version() -> str:
+    from .. import __version__
+
+    return __version__
+
+
+def _one_line_warnings():
+    shown: set[str] = set()
+
+    def show(message, category, filename, lineno, file=None, line=None) -> None:
+        from ..errors import LightprobeWarning
+
+        text = " ".join(str(message).split())[:500]
+        if issubclass(category, LightprobeWarning) and text not in shown:
+            shown.add(text)
+            print(f"lightprobe: warning: {text}", file=sys.stderr)
+
+    return show
+
+
+def _error(message: str) -> None:
+    print(f"lightprobe: error: {' '.join(str(message).split())[:1000]}", file=sys.stderr)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point; returns the exit status (0 ok, 2 bad input or usage, 128 + N after signal N)."""
+    from ..files import Terminated, raise_on_termination
+
+    warnings.showwarning = _one_line_warnings()
+    raise_on_termination()
+    try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+        if not hasattr(args, "run"):
+            parser.print_help()
+            return 2
+        args.run(args)
+        return 0
+    except SystemExit as e:  # --help and --version
+        return int(e.code or 0)
+    except KeyboardInterrupt:
+        _error("interrupted")
+        return 130
+    except Terminated as e:
+        _error(f"stopped by {signal.Signals(e.signum).name}; no partial output was left")
+        return 128 + e.signum
+    except LightprobeError as e:
+        _error(str(e))
+        return 2
+    except MemoryError:
+        _error("out of memory; lower LIGHTPROBE_MAX_MEMORY so such work is refused before it starts, or use "
+               "smaller sizes")
+        return 2
+    except OSError as e:
+        _error(f"{e.strerror or e}" + (f": {e.filename}" if e.filename else ""))
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

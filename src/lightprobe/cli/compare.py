@@ -1,0 +1,47 @@
+"""``lightprobe compare``: relative MSE, MARE and HDR-FLIP of a rendering against a reference."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .common import print_json
+
+WORKING_BYTES_PER_PIXEL = 160  # float64 copies of both images, FLIP's buffers, the error maps
+
+
+def register(sub) -> None:
+    p = sub.add_parser("compare", help="error of a rendering against a reference (relMSE, MARE, HDR-FLIP)",
+                       description="Relative MSE, mean absolute relative error and HDR-FLIP of TEST against REF "
+                                   "(linear HDR images of one size), and an error heat map. NaN, infinite and "
+                                   "negative pixels are replaced by 0 with a warning, as everywhere.")
+    p.add_argument("test", type=Path)
+    p.add_argument("reference", type=Path)
+    p.add_argument("--heatmap", type=Path, help="write the relative-error heat map (PNG)")
+    p.add_argument("--flipmap", type=Path, help="write the FLIP error map (PNG)")
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(run=run)
+
+
+def run(args) -> None:
+    from ..envmap import repair
+    from ..files import check_output
+    from ..io import read_image, write_image
+    from ..render.compare import compare, error_heatmap, hdr_flip
+    from ..tonemap import heatmap
+
+    inputs = [args.test, args.reference]
+    for out in (args.heatmap, args.flipmap):
+        if out is not None:
+            check_output(out, inputs)
+    test = repair(read_image(args.test, WORKING_BYTES_PER_PIXEL), str(args.test))
+    ref = repair(read_image(args.reference, WORKING_BYTES_PER_PIXEL), str(args.reference))
+    metrics = compare(test, ref)
+    if args.heatmap:
+        write_image(args.heatmap, error_heatmap(test, ref), encoded=True, inputs=inputs)
+    if args.flipmap:
+        write_image(args.flipmap, heatmap(hdr_flip(test, ref)[1], 1.0), encoded=True, inputs=inputs)
+    if args.json:
+        print_json(metrics.as_dict())
+    else:
+        print(f"relative MSE {metrics.relative_mse:.4g}   MARE {metrics.mare:.4g}   HDR-FLIP {metrics.flip:.4g}   "
+              f"({metrics.pixels} pixels)")

@@ -1,0 +1,53 @@
+"""``lightprobe convert``: between layouts (and sizes, and turned), energy-conserving."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .common import Number, Triple, add_option, layout_names, load, refuse
+
+READ_WORKING_BYTES_PER_PIXEL = 96  # the source's padded copy and geometry tables during resampling
+WRITE_BYTES_PER_PIXEL = 48  # the flat output image, its tone-mapped or encoded copy, the read-back check
+
+
+def register(sub) -> None:
+    from ..tonemap import CURVES
+
+    p = sub.add_parser("convert", help="convert between layouts (and rotate)",
+                       description="Convert between layouts with footprint-aware resampling (∫L dω conserved), "
+                                   "optionally turning the environment.")
+    p.add_argument("src", type=Path, help="input environment map")
+    p.add_argument("dst", type=Path, help="output: .exr, .hdr, .pfm, or .png/.jpg (tone-mapped)")
+    p.add_argument("--to", "-t", required=True, choices=layout_names(), help="target layout (cube: a 6N×N strip)")
+    add_option(p, "--size", type=Number(int, 1, 65536),
+               help="height (latlong, angular, sphere) or face edge (cube, cross, hcross); default keeps the "
+                    "angular resolution")
+    add_option(p, "--rotate", metavar="Y,P,R", type=Triple(-36000, 36000),
+               help="turn the environment by yaw,pitch,roll degrees (R = Ry·Rx·Rz, +Y up)")
+    p.add_argument("--layout", "-l", choices=layout_names(), help="layout of the input (default: from aspect ratio)")
+    p.add_argument("--half", action="store_true", help="write half floats (EXR only)")
+    add_option(p, "--exposure", type=Number(float, -64, 64), default=0.0, help="exposure in stops for .png/.jpg")
+    p.add_argument("--curve", choices=CURVES, default="srgb", help="tone curve for .png/.jpg output")
+    p.set_defaults(run=run)
+
+
+def run(args) -> None:
+    from ..envmap import check_size, resample, resample_memory
+    from ..files import check_output
+    from ..frames import as_rotation
+    from ..io import WRITE_FORMATS, image_header
+    from ..layouts import layout as layout_named
+
+    if args.dst.suffix.lower() not in WRITE_FORMATS:
+        refuse(f"cannot write {args.dst}: unknown image format; use one of {', '.join(WRITE_FORMATS)}")
+    check_output(args.dst, [args.src])
+    target = layout_named(args.to)
+    rotation = as_rotation(args.rotate) if args.rotate is not None else None
+    header = image_header(args.src)
+    out_pixels = check_size(target, args.size or target.default_size(header.pixels))
+    env = load(args.src, args.layout, working_bytes_per_pixel=READ_WORKING_BYTES_PER_PIXEL,
+               extra_bytes=resample_memory(0, out_pixels) + out_pixels * WRITE_BYTES_PER_PIXEL,
+               what=f"converting {args.src} ({header.width}×{header.height}) to {args.to} ({out_pixels} pixels)")
+    out = resample(env, target, args.size, rotation=rotation)
+    out.save(args.dst, half=args.half, exposure=args.exposure, curve=args.curve, inputs=[args.src])
+    print(f"wrote {args.dst} ({args.to}, size {out.size})")

@@ -1,0 +1,52 @@
+"""``lightprobe error``: SH irradiance against brute force, both measures of SPEC §3."""
+
+from __future__ import annotations
+
+from .common import Number, NumberList, add_option, add_probe, load, print_json
+
+MAX_ORDER = 32
+WORKING_BYTES_PER_PIXEL = 96  # the brute-force light samples and the SH projection's geometry
+
+
+def register(sub) -> None:
+    from ..sh import WINDOWS
+
+    p = sub.add_parser("error", help="SH irradiance error against brute force",
+                       description="Both error measures of SPEC 3 on luminance over uniformly spread normals: the "
+                                   "paper's |E - E_ref| / (integral of L) and the per-normal |E - E_ref| / E_ref.")
+    add_probe(p)
+    add_option(p, "--order", type=NumberList(int, 0, MAX_ORDER, 8), default="2", help="l_max, or a list such as 2,4,6")
+    p.add_argument("--window", choices=WINDOWS + ("all",), default="all",
+                   help="de-ringing window (default: every window, to show what each costs)")
+    add_option(p, "--normals", type=Number(int, 16, 200000), default=2000, help="number of test normals")
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(run=run)
+
+
+def run(args) -> None:
+    from dataclasses import asdict
+
+    from ..irradiance import brute_irradiance, error_report, reference_normals
+    from ..sh import WINDOWS, project
+
+    orders = args.order  # a list: argparse converts the default through the type too
+    env = load(args.file, args.layout, working_bytes_per_pixel=WORKING_BYTES_PER_PIXEL)
+    normals = reference_normals(args.normals)
+    reference = brute_irradiance(env, normals)
+    sh = project(env, max(orders))
+    windows = WINDOWS if args.window == "all" else (args.window,)
+    reports = [error_report(env, o, w, normals, reference, sh) for o in orders for w in windows]
+    if args.json:
+        print_json([asdict(r) for r in reports])
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title=f"SH irradiance vs brute force, {args.normals} normals, luminance")
+    for col in ("order", "window", "paper mean", "paper max", "relative mean", "relative max", "E < 0"):
+        table.add_column(col, justify="right")
+    for r in reports:
+        table.add_row(str(r.l_max), r.window, f"{100 * r.paper_mean:.2f} %", f"{100 * r.paper_max:.2f} %",
+                      f"{100 * r.relative_mean:.1f} %", f"{100 * r.relative_max:.1f} %",
+                      f"{100 * r.negative_fraction:.1f} %")
+    Console().print(table)

@@ -1,0 +1,169 @@
+"""Writing files so that nothing is lost: temporary file, checked write, fsync, rename.
+
+Every output of lightprobe goes through :func:`atomic_path` (or :func:`write_text` / :func:`write_bytes` on it):
+
+* the target is refused when it is a folder, when it is one of the command's inputs (``sh in.hdr -o in.hdr``), or
+  (for text) when its extension names an image format;
+* the data goes to a temporary file beside the target, named ``.NAME.lpPID-RANDOM.tmpEXT``; it is flushed and
+  fsync'd, checked by the caller (an image is read back), and only then renamed over the target — so a full disk,
+  a file-size limit or a crash never replaces a good file with a partial one;
+* SIGTERM and SIGHUP raise :class:`Terminated` in the CLI (see :func:`raise_on_termination`), so the temporary file
+  is removed on the way out; after a ``kill -9`` nothing can run, so each new write sweeps the folder for temporary
+  files of this naming whose process is gone.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+import secrets
+import shutil
+import signal
+from collections.abc import Callable, Iterable, Iterator
+from pathlib import Path
+
+from .errors import InputError
+
+# Extensions of image files: text is never written over one of these (``sh probe.hdr -o probe.hdr`` style mistakes).
+IMAGE_EXTENSIONS = frozenset(".hdr .rgbe .pic .exr .pfm .png .jpg .jpeg .tif .tiff .tga .bmp .webp .dds .ktx "
+                             ".ktx2 .psd .gif .ppm .pnm".split())
+_TEMP_NAME = re.compile(r"^\..+\.lp(\d+)-[0-9a-f]{8}\.tmp(\.[^./]*)?$")
+
+
+class Terminated(BaseException):
+    """Raised by the SIGTERM/SIGHUP handler so that ``finally`` blocks and temporary-file cleanup run."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def raise_on_termination() -> None:
+    """Turn SIGTERM and SIGHUP into :class:`Terminated` (the CLI calls this once at start)."""
+    def handler(signum, frame):
+        raise Terminated(signum)
+
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, handler)
+
+
+def temp_path_for(path: Path) -> Path:
+    """A fresh temporary name beside ``path`` that keeps its extension (image libraries pick formats by it)."""
+    return path.with_name(f".{path.name}.lp{os.getpid()}-{secrets.token_hex(4)}.tmp{path.suffix}")
+
+
+def _process_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def sweep_stale_temporaries(folder: Path) -> list[Path]:
+    """Remove temporary files (and report folders) of our naming in ``folder`` whose process no longer exists."""
+    removed = []
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return removed
+    for entry in entries:
+        match = _TEMP_NAME.match(entry.name)
+        if match and int(match.group(1)) != os.getpid() and not _process_alive(int(match.group(1))):
+            with contextlib.suppress(OSError):
+                if entry.is_dir(follow_symlinks=False):
+                    shutil.rmtree(entry.path)
+                else:
+                    os.unlink(entry.path)
+                removed.append(Path(entry.path))
+    return removed
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def check_output(path: Path, inputs: Iterable[os.PathLike | str | None] = (), text: bool = False) -> Path:
+    """Refuse an output path that cannot or must not be written (see the module docstring); returns it."""
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    if path.is_dir():
+        raise InputError(f"cannot write {path}: it is a folder")
+    if not folder.is_dir():
+        raise InputError(f"cannot write {path}: folder {folder} does not exist")
+    for source in inputs:
+        if source is not None and _same_file(path, Path(source)):
+            raise InputError(f"refusing to write {path}: it is an input of this command (choose another output)")
+    if text and path.suffix.lower() in IMAGE_EXTENSIONS:
+        raise InputError(f"refusing to write text to {path}: its extension {path.suffix} names an image format")
+    if path.exists() and not path.is_file():
+        raise InputError(f"cannot write {path}: it exists and is not a regular file")
+    return path
+
+
+def _fsync(path: Path) -> None:
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike, inputs: Iterable = (), text: bool = False,
+                verify: Callable[[Path], None] | None = None) -> Iterator[Path]:
+    """Yield a temporary path beside ``path``; when the block succeeds, fsync it, run ``verify(tmp)`` (which raises
+    if the file is incomplete), give it the usual permissions and rename it onto ``path``. On any failure the
+    temporary file is removed and ``path`` is untouched. OS errors become one-line :class:`InputError`\\ s that name
+    ``path``, not the temporary file."""
+    path = check_output(Path(path), inputs, text)
+    sweep_stale_temporaries(path.parent if str(path.parent) else Path("."))
+    tmp = temp_path_for(path)
+    try:
+        yield tmp
+        if not tmp.is_file():
+            raise InputError(f"cannot write {path}: nothing was written")
+        _fsync(tmp)
+        if verify is not None:
+            verify(tmp)
+        os.chmod(tmp, 0o666 & ~_umask())
+        os.replace(tmp, path)
+        with contextlib.suppress(OSError):  # make the rename itself durable
+            _fsync(path.parent if str(path.parent) else Path("."))
+    except OSError as e:
+        raise InputError(f"cannot write {path}: {e.strerror or e}") from None
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+
+
+def write_bytes(path: str | os.PathLike, data: bytes, inputs: Iterable = (), text: bool = False) -> Path:
+    """Write ``data`` to ``path`` atomically; the written size is checked before the rename."""
+    path = Path(path)
+
+    def complete(tmp: Path) -> None:
+        if tmp.stat().st_size != len(data):
+            raise InputError(f"cannot write {path}: only {tmp.stat().st_size} of {len(data)} bytes were written")
+
+    with atomic_path(path, inputs, text, verify=complete) as tmp:
+        with open(tmp, "wb") as f:
+            f.write(data)
+            f.flush()
+    return path
+
+
+def write_text(path: str | os.PathLike, text: str, inputs: Iterable = ()) -> Path:
+    """Write UTF-8 text atomically; refuses a path with an image extension or one that is an input."""
+    return write_bytes(path, text.encode("utf-8"), inputs, text=True)
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask

@@ -1,0 +1,79 @@
+"""Limits that keep hostile or absurd input from taking the machine: pixels, triangles and memory.
+
+Each limit has a default and an environment variable to change it; a malformed variable is reported when a limit is
+used (one line, exit 2), never at import. Work is refused *before* it starts when its estimated peak memory exceeds
+:func:`max_memory`, so a 0.4 MB PNG that decodes to 16384×8192 pixels gets one line, not 14 GB of swap.
+
+* ``LIGHTPROBE_MAX_PIXELS`` (default 2²⁷): pixels of one image, read or made.
+* ``LIGHTPROBE_MAX_TRIANGLES`` (default 2·10⁷): triangles of one scene, all meshes together.
+* ``LIGHTPROBE_MAX_MEMORY`` (bytes, or with a suffix K, M, G; default half of the machine's physical memory): the
+  estimated peak resident memory of one command.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+
+from .errors import BudgetError, UsageError
+
+DEFAULT_MAX_PIXELS = 1 << 27
+DEFAULT_MAX_TRIANGLES = 20_000_000
+_SUFFIX = {"": 1, "K": 1 << 10, "M": 1 << 20, "G": 1 << 30, "T": 1 << 40}
+
+
+def _positive_env(name: str, default: int, units: bool = False) -> int:
+    text = os.environ.get(name)
+    if text is None or not text.strip():
+        return default
+    match = re.fullmatch(r"\s*(\d+)\s*([KMGT]?)(?:i?B)?\s*", text, re.I) if units else re.fullmatch(r"\s*(\d+)\s*", text)
+    value = int(match.group(1)) * (_SUFFIX[match.group(2).upper()] if units else 1) if match else 0
+    if value < 1:
+        kind = "a positive number of bytes (e.g. 8G)" if units else "a positive whole number"
+        raise UsageError(f"{name} must be {kind}, got {text[:40]!r}")
+    return value
+
+
+def max_pixels() -> int:
+    return _positive_env("LIGHTPROBE_MAX_PIXELS", DEFAULT_MAX_PIXELS)
+
+
+def max_triangles() -> int:
+    return _positive_env("LIGHTPROBE_MAX_TRIANGLES", DEFAULT_MAX_TRIANGLES)
+
+
+def physical_memory() -> int:
+    """Bytes of physical memory (or of the cgroup limit, when one is set and smaller)."""
+    total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    for path in ("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory/memory.limit_in_bytes"):
+        try:
+            text = open(path).read().strip()
+        except OSError:
+            continue
+        if text.isdigit():
+            total = min(total, int(text))
+    return total
+
+
+def max_memory() -> int:
+    return _positive_env("LIGHTPROBE_MAX_MEMORY", physical_memory() // 2, units=True)
+
+
+def gib(n: float) -> str:
+    return f"{n / (1 << 30):.2f} GiB" if n >= 1 << 28 else f"{n / (1 << 20):.0f} MiB"
+
+
+def check_pixels(count: int, what: str) -> None:
+    """Refuse ``count`` pixels (an exact Python integer: no overflow) over :func:`max_pixels`."""
+    limit = max_pixels()
+    if count > limit:
+        raise BudgetError(f"refusing {what}: {count} pixels is over the limit of {limit} "
+                          "(set LIGHTPROBE_MAX_PIXELS to raise it)")
+
+
+def check_memory(estimate: int, what: str) -> None:
+    """Refuse work whose estimated peak memory ``estimate`` (bytes) exceeds :func:`max_memory`."""
+    limit = max_memory()
+    if estimate > limit:
+        raise BudgetError(f"refusing {what}: it needs about {gib(estimate)} of memory, over the limit of {gib(limit)} "
+                          "(set LIGHTPROBE_MAX_MEMORY to raise it)")

@@ -1,0 +1,259 @@
+"""Scene files (YAML or JSON): read with bounds, validated field by field, built into a :class:`Scene`.
+
+A scene file::
+
+    probe: path/to/probe.hdr            # optional; default: the shipped probe (paths relative to the file)
+    rotate: [0, 0, 0]                   # optional yaw, pitch, roll of the environment, degrees
+    camera: {eye: [0, 0.6, 2.2], target: [0, 0.3, 0], up: [0, 1, 0], fov: 35, width: 256, height: 256}
+    meshes:
+      - {file: bunny.ply, albedo: [0.8, 0.8, 0.8], fit: 0.8, place_on_ground: true, rotate: [0, 0, 0]}
+      - {shape: sphere, albedo: [0.7, 0.7, 0.7], radius: 0.3, center: [0.5, 0.3, 0]}
+      - {shape: torus, major: 0.35, minor: 0.12, center: [0, 0.12, 0]}
+    ground: {albedo: [0.5, 0.5, 0.5], size: 20, height: 0}     # or ground: false
+    background: true
+
+``fit`` scales a mesh so its largest extent is that many units and centres it on x and z; ``place_on_ground`` sets
+its lowest point on the ground plane; then ``scale`` and ``translate`` apply. Albedo is linear RGB reflectance in
+[0, 1]; ``texture`` (an image file) with the mesh's UVs overrides it.
+
+Every field is checked for its type and range (:data:`RANGES`), unknown fields are refused (a typo is not silently
+ignored), and errors name the field (``scene: meshes[2].radius must be a number …``) without echoing more than a
+few characters of the value. The file is bounded as loaded: at most :data:`MAX_FILE_BYTES`, at most
+:data:`MAX_NODES` YAML nodes *after* expanding aliases (a 573-byte alias bomb expands to billions), at most
+:data:`MAX_MESHES` meshes, and the scene's triangles, all meshes together, within ``LIGHTPROBE_MAX_TRIANGLES`` —
+counted before each built-in shape is made.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+from ..envmap import EnvMap, read_envmap
+from ..errors import BudgetError, InputError, short
+from ..io import check_regular_file, read_image
+from ..limits import max_triangles
+from .scene import (SPHERE_TRIANGLES, TORUS_TRIANGLES, Camera, Material, MeshInstance, Scene, fitted,
+                    ground_plane, load_mesh, sphere, torus, transformed)
+
+MAX_FILE_BYTES = 16 << 20
+MAX_NODES = 200_000
+MAX_MESHES = 10_000
+COORD = 1e6  # |coordinate| bound for positions, sizes and angles
+RANGES = {  # field: (smallest, largest) — also the documentation of each number's range
+    "fov": (0.1, 179.0), "width": (1, 16384), "height": (1, 16384), "radius": (1e-6, COORD),
+    "major": (1e-6, COORD), "minor": (1e-6, COORD), "fit": (1e-6, COORD), "scale": (1e-6, COORD),
+    "size": (1e-6, COORD), "height_of_ground": (-COORD, COORD), "albedo": (0.0, 1.0), "angle": (-36000.0, 36000.0),
+    "coordinate": (-COORD, COORD),
+}
+
+
+class _Fields:
+    """One mapping of a scene file, read field by field with checks; ``where`` names it in messages."""
+
+    def __init__(self, spec, where: str, allowed: set[str]):
+        if not isinstance(spec, dict):
+            raise InputError(f"scene: {where} must be a mapping, got {short(spec)}")
+        unknown = sorted(str(k) for k in spec if k not in allowed)
+        if unknown:
+            raise InputError(f"scene: unknown field {short(unknown[0])} in {where} (known: {', '.join(sorted(allowed))})")
+        self.spec, self.where = spec, where
+
+    def name(self, key: str) -> str:
+        return f"{self.where}.{key}" if self.where != "the top level" else key
+
+    def has(self, key: str) -> bool:
+        return self.spec.get(key) is not None
+
+    def number(self, key: str, default: float, bounds: tuple[float, float]) -> float:
+        value = self.spec.get(key, default)
+        return _number(value, self.name(key), bounds)
+
+    def integer(self, key: str, default: int, bounds: tuple[int, int]) -> int:
+        value = self.spec.get(key, default)
+        if isinstance(value, bool) or not isinstance(value, int):
+            if not (isinstance(value, float) and value.is_integer()):
+                raise InputError(f"scene: {self.name(key)} must be a whole number, got {short(value)}")
+        value = int(value)
+        if not bounds[0] <= value <= bounds[1]:
+            raise InputError(f"scene: {self.name(key)} must be within {bounds[0]}..{bounds[1]}, got {value}")
+        return value
+
+    def vector(self, key: str, default, bounds: tuple[float, float] = RANGES["coordinate"]) -> tuple[float, ...]:
+        value = self.spec.get(key, default)
+        if not isinstance(value, (list, tuple)) or len(value) != 3:
+            raise InputError(f"scene: {self.name(key)} must be a list of 3 numbers, got {short(value)}")
+        return tuple(_number(v, f"{self.name(key)}[{i}]", bounds) for i, v in enumerate(value))
+
+    def flag(self, key: str, default: bool) -> bool:
+        value = self.spec.get(key, default)
+        if not isinstance(value, bool):
+            raise InputError(f"scene: {self.name(key)} must be true or false, got {short(value)}")
+        return value
+
+    def path(self, key: str, base: Path) -> Path | None:
+        value = self.spec.get(key)
+        if value is None:
+            return None
+        if not isinstance(value, str) or not value.strip() or "\0" in value:
+            raise InputError(f"scene: {self.name(key)} must be a file name, got {short(value)}")
+        return base / value
+
+
+def _number(value, where: str, bounds: tuple[float, float]) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise InputError(f"scene: {where} must be a number, got {short(value)}")
+    value = float(value)
+    if not bounds[0] <= value <= bounds[1]:  # also refuses NaN
+        raise InputError(f"scene: {where} must be within {bounds[0]:g}..{bounds[1]:g}, got {value:g}")
+    return value
+
+
+# ---- reading the file ---------------------------------------------------------------------------------------------
+def _expanded_size(node, memo: dict) -> int:
+    """Nodes of a composed YAML tree with every alias expanded, computed once per distinct node (linear time)."""
+    import yaml
+
+    key = id(node)
+    if key in memo:
+        return memo[key]
+    memo[key] = MAX_NODES + 1  # a node that contains itself (a recursive alias) is over any bound
+    if isinstance(node, yaml.SequenceNode):
+        size = 1 + sum(_expanded_size(child, memo) for child in node.value)
+    elif isinstance(node, yaml.MappingNode):
+        size = 1 + sum(_expanded_size(k, memo) + _expanded_size(v, memo) for k, v in node.value)
+    else:
+        size = 1
+    memo[key] = size
+    return size
+
+
+def _load_yaml(text: str, path: Path):
+    import yaml
+
+    loader = yaml.SafeLoader(text)
+    try:
+        node = loader.get_single_node()
+        if node is None:
+            return None
+        if _expanded_size(node, {}) > MAX_NODES:
+            raise InputError(f"refusing scene {path}: it expands to more than {MAX_NODES} values (YAML aliases)")
+        return loader.construct_document(node)
+    finally:
+        loader.dispose()
+
+
+def load_scene(path: str | os.PathLike, environment: EnvMap | None = None) -> Scene:
+    """A scene from a YAML or JSON file (see the module docstring); ``environment`` overrides its ``probe``."""
+    path = Path(path)
+    check_regular_file(path, "scene")
+    if path.stat().st_size > MAX_FILE_BYTES:
+        raise BudgetError(f"refusing scene {path}: {path.stat().st_size} bytes is over {MAX_FILE_BYTES}")
+    text = path.read_text(encoding="utf-8", errors="replace")
+    try:
+        spec = json.loads(text) if path.suffix.lower() == ".json" else _load_yaml(text, path)
+    except InputError:
+        raise
+    except Exception as e:  # the YAML and JSON parsers raise many kinds of errors for bad files
+        first = (str(e).strip().splitlines() or [type(e).__name__])[0]
+        raise InputError(f"cannot read scene {path}: {first[:200]}") from None
+    if not isinstance(spec, dict):
+        raise InputError(f"cannot read scene {path}: expected a mapping at the top level")
+    return scene_from_dict(spec, path.parent, environment, path.stem)
+
+
+# ---- building the scene -------------------------------------------------------------------------------------------
+class _TriangleBudget:
+    """Triangles of the scene so far, against ``LIGHTPROBE_MAX_TRIANGLES``; checked before shapes are made."""
+
+    def __init__(self):
+        self.limit, self.used = max_triangles(), 0
+
+    def take(self, count: int, what: str) -> None:
+        self.used += count
+        if self.used > self.limit:
+            raise BudgetError(f"refusing the scene: with {what} it has {self.used} triangles, over the limit of "
+                              f"{self.limit} (set LIGHTPROBE_MAX_TRIANGLES to raise it)")
+
+
+MESH_FIELDS = {"file", "shape", "albedo", "texture", "radius", "center", "major", "minor", "fit", "place_on_ground",
+               "rotate", "scale", "translate"}
+
+
+def _mesh(entry, i: int, base: Path, ground_height: float, budget: _TriangleBudget, loaded: dict) -> MeshInstance:
+    f = _Fields(entry, f"meshes[{i}]", MESH_FIELDS)
+    material = Material(f.vector("albedo", (0.8, 0.8, 0.8), RANGES["albedo"]))
+    texture = f.path("texture", base)
+    if texture is not None:
+        material = Material(material.albedo, read_image(texture))
+    shape = f.spec.get("shape")
+    if shape == "sphere":
+        budget.take(SPHERE_TRIANGLES, f"meshes[{i}]")
+        return sphere(f.number("radius", 0.5, RANGES["radius"]), f.vector("center", (0, 0.5, 0)), material)
+    if shape == "torus":
+        budget.take(TORUS_TRIANGLES, f"meshes[{i}]")
+        return torus(f.number("major", 0.35, RANGES["major"]), f.number("minor", 0.12, RANGES["minor"]),
+                     f.vector("center", (0, 0.12, 0)), material)
+    if shape is not None:
+        raise InputError(f"scene: meshes[{i}].shape must be sphere or torus, got {short(shape)}")
+    file = f.path("file", base)
+    if file is None:
+        raise InputError(f"scene: meshes[{i}] needs a file or a shape (sphere, torus)")
+    if file not in loaded:  # the same file named many times is read once
+        loaded[file] = load_mesh(file)
+    mesh = loaded[file]
+    budget.take(len(mesh.faces), f"meshes[{i}] ({file.name})")
+    mesh = MeshInstance(mesh.vertices, mesh.faces, mesh.normals,
+                        Material(material.albedo, material.texture if material.texture is not None
+                                 else mesh.material.texture), mesh.uv, mesh.name)
+    if f.has("rotate"):
+        mesh = transformed(mesh, 1.0, f.vector("rotate", None, RANGES["angle"]))
+    if f.has("fit"):
+        mesh = fitted(mesh, f.number("fit", 1.0, RANGES["fit"]), f.flag("place_on_ground", True), ground_height)
+    if f.has("scale") or f.has("translate"):
+        mesh = transformed(mesh, f.number("scale", 1.0, RANGES["scale"]), None, f.vector("translate", (0, 0, 0)))
+    return mesh
+
+
+def _camera(spec) -> Camera:
+    c = _Fields(spec if spec is not None else {}, "camera", {"eye", "target", "up", "fov", "width", "height"})
+    return Camera(eye=c.vector("eye", Camera.eye), target=c.vector("target", Camera.target),
+                  up=c.vector("up", Camera.up), fov=c.number("fov", Camera.fov, RANGES["fov"]),
+                  width=c.integer("width", Camera.width, RANGES["width"]),
+                  height=c.integer("height", Camera.height, RANGES["height"]))
+
+
+def scene_from_dict(spec: dict, base: Path, environment: EnvMap | None = None, name: str = "scene") -> Scene:
+    """Build a :class:`Scene` from the parsed file (see the module docstring); paths are relative to ``base``."""
+    from ..data import default_probe_path
+
+    top = _Fields(spec, "the top level", {"probe", "rotate", "camera", "meshes", "ground", "background"})
+    camera = _camera(spec.get("camera"))
+    ground_spec = spec.get("ground", {})
+    if ground_spec is True:
+        ground_spec = {}
+    if ground_spec is not False and ground_spec is not None:
+        ground = _Fields(ground_spec, "ground", {"albedo", "size", "height"})
+        ground_height = ground.number("height", 0.0, RANGES["height_of_ground"])
+    else:
+        ground, ground_height = None, 0.0
+    entries = spec.get("meshes") or []
+    if not isinstance(entries, list):
+        raise InputError(f"scene: meshes must be a list, got {short(entries)}")
+    if len(entries) > MAX_MESHES:
+        raise BudgetError(f"refusing the scene: {len(entries)} meshes is over {MAX_MESHES}")
+    budget, loaded = _TriangleBudget(), {}
+    meshes = [_mesh(entry, i, base, ground_height, budget, loaded) for i, entry in enumerate(entries)]
+    if ground is not None:
+        meshes.append(ground_plane(ground.number("size", 20.0, RANGES["size"]), ground_height,
+                                   Material(ground.vector("albedo", (0.5, 0.5, 0.5), RANGES["albedo"]))))
+    if not meshes:
+        raise InputError("scene: nothing to render (no meshes and no ground)")
+    background = top.flag("background", True)
+    if environment is None:
+        probe = top.path("probe", base)
+        environment = read_envmap(probe or default_probe_path())
+    if top.has("rotate"):
+        environment = environment.rotated(top.vector("rotate", None, RANGES["angle"]))
+    return Scene(tuple(meshes), camera, environment, background, name)

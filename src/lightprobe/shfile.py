@@ -1,0 +1,80 @@
+"""lightprobe's SH JSON file: one versioned schema for ``sh --json``, ``export --to json`` and ``design --json``.
+
+Schema ``{"format": "lightprobe.sh", "version": 2, ...}``:
+
+* ``quantity``: ``radiance`` (L_lm) or ``irradiance`` (E_lm = Â_l L_lm, not divided by π);
+* ``frame`` (a name of :data:`lightprobe.frames.FRAMES`) and ``frame_description``: the frame whose +z the basis is
+  built about;
+* ``basis``: real SH without the Condon–Shortley phase, flat index l(l+1)+m (fixed text);
+* ``window``: the de-ringing window applied (``none``, ``lanczos(3)``, …); ``l_max``; ``names`` (L00, L1-1, …);
+* ``coefficients``: (l_max+1)² rows of [R, G, B];
+* ``source``: the map the coefficients came from, or null.
+
+:func:`read_sh_json` refuses anything else with one line (it is fuzzed in the tests).
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from .errors import InputError
+from .frames import FRAMES, WORLD, Frame
+from .sh import QUANTITIES, SHCoeffs, n_coeffs, name
+
+FORMAT, VERSION = "lightprobe.sh", 2
+BASIS = "real SH, no Condon-Shortley phase, flat index l(l+1)+m (Ramamoorthi & Hanrahan 2001)"
+MAX_ORDER = 64
+MAX_BYTES = 4 << 20
+
+
+def sh_document(sh: SHCoeffs, frame: Frame = WORLD, source: str | None = None) -> dict:
+    """The schema's object for ``sh`` stated in ``frame``."""
+    out = sh.to_frame(frame)
+    return {"format": FORMAT, "version": VERSION, "quantity": out.quantity, "frame": out.frame.name,
+            "frame_description": out.frame.description, "basis": BASIS, "window": out.window, "l_max": out.l_max,
+            "names": [name(i) for i in range(n_coeffs(out.l_max))], "coefficients": out.as_list(),
+            "source": source}
+
+
+def sh_json(sh: SHCoeffs, frame: Frame = WORLD, source: str | None = None) -> str:
+    return json.dumps(sh_document(sh, frame, source), indent=1, allow_nan=False) + "\n"
+
+
+def read_sh_json(text: str | bytes, what: str = "SH file") -> SHCoeffs:
+    """Coefficients from the schema's JSON text; every field is checked."""
+    if len(text) > MAX_BYTES:
+        raise InputError(f"cannot read {what}: over {MAX_BYTES} bytes")
+    try:
+        doc = json.loads(text)
+    except (ValueError, UnicodeDecodeError, RecursionError) as e:
+        raise InputError(f"cannot read {what}: not JSON ({str(e).splitlines()[0][:120] if str(e) else 'invalid'})"
+                         ) from None
+
+    def fail(reason: str):
+        raise InputError(f"cannot read {what}: {reason}")
+
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        fail(f"not a {FORMAT} document")
+    if doc.get("version") != VERSION:
+        fail(f"version {str(doc.get('version'))[:20]} is not {VERSION}")
+    quantity, frame, window, l_max = doc.get("quantity"), doc.get("frame"), doc.get("window", "none"), doc.get("l_max")
+    if quantity not in QUANTITIES:
+        fail("quantity must be radiance or irradiance")
+    if not isinstance(frame, str) or frame not in FRAMES:
+        fail(f"frame must be one of {', '.join(FRAMES)}")
+    if not isinstance(window, str) or len(window) > 64:
+        fail("window must be a short text")
+    if isinstance(l_max, bool) or not isinstance(l_max, int) or not 0 <= l_max <= MAX_ORDER:
+        fail(f"l_max must be a whole number within 0..{MAX_ORDER}")
+    rows = doc.get("coefficients")
+    if not isinstance(rows, list) or len(rows) != n_coeffs(l_max):
+        fail(f"coefficients must be {n_coeffs(l_max)} rows for l_max {l_max}")
+    if not all(isinstance(r, list) and len(r) == 3 and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                                           for v in r) for r in rows):
+        fail("each coefficient must be three numbers [R, G, B]")
+    coeffs = np.array(rows, dtype=np.float64)
+    if not np.isfinite(coeffs).all():
+        fail("coefficients must be finite")
+    return SHCoeffs(coeffs, FRAMES[frame], quantity, window)
