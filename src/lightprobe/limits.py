@@ -55,8 +55,27 @@ def physical_memory() -> int:
     return total
 
 
+def _address_space_left() -> int | None:
+    """Bytes this process may still map under ``ulimit -v`` (RLIMIT_AS), or None when there is no such limit."""
+    import resource
+
+    soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    if soft == resource.RLIM_INFINITY:
+        return None
+    try:
+        status = open("/proc/self/status").read()
+        used = int(re.search(r"VmSize:\s*(\d+) kB", status).group(1)) * 1024
+    except (OSError, AttributeError):
+        used = 0
+    return max(soft - used, 0)
+
+
 def max_memory() -> int:
-    return _positive_env("LIGHTPROBE_MAX_MEMORY", physical_memory() // 2, units=True)
+    """The memory budget of one command: ``LIGHTPROBE_MAX_MEMORY``, else half the physical memory — and never more
+    than the address space a ``ulimit -v`` leaves (under such a cap Mitsuba and numba crash instead of raising)."""
+    budget = _positive_env("LIGHTPROBE_MAX_MEMORY", physical_memory() // 2, units=True)
+    left = _address_space_left()
+    return budget if left is None else min(budget, left)
 
 
 def gib(n: float) -> str:

@@ -232,6 +232,8 @@ class SHCoeffs:
         """The same function stated in another frame (SPEC §1: world → rh2001 negates L10, L2−1, L21, …)."""
         target = frame_named(target)
         q = target.to_frame @ self.frame.to_frame.T  # this frame → target frame
+        if np.array_equal(q, np.eye(3)):  # the same axes (world and three.js, say): exact, no least-squares round-off
+            return replace(self, frame=target)
         return replace(self, coeffs=transform_matrix(self.l_max, q) @ self.coeffs, frame=target)
 
     def rotated(self, rotation: np.ndarray) -> SHCoeffs:

@@ -13,6 +13,7 @@ import numpy as np
 from .errors import UsageError
 
 CURVES = ("srgb", "aces")
+MAX_EXPOSURE = 64
 
 
 
@@ -38,6 +39,8 @@ def tonemap(radiance: np.ndarray, exposure: float = 0.0, curve: str = "srgb") ->
     """Linear radiance → display-encoded float values in [0, 1] (NaN and negative values show as black)."""
     if curve not in CURVES:
         raise UsageError(f"unknown tone curve {curve!r}; choose one of {', '.join(CURVES)}")
+    if not -MAX_EXPOSURE <= exposure <= MAX_EXPOSURE:  # also refuses NaN; 2**1024 overflows a float
+        raise UsageError(f"exposure must be within ±{MAX_EXPOSURE} stops, got {exposure}")
     x = np.nan_to_num(np.asarray(radiance, dtype=np.float32), nan=0.0, posinf=0.0, neginf=0.0) * 2.0**exposure
     if curve == "aces":
         x = aces_filmic(x)

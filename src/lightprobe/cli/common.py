@@ -11,7 +11,7 @@ from pathlib import Path
 
 from ..errors import LightprobeError, UsageError
 
-BASE_MEMORY = 450 << 20  # resident memory of a command before its data (Python, numpy, numba, OpenImageIO, Embree)
+BASE_MEMORY = 256 << 20  # resident memory of a command before its data (Python, numpy, numba, OpenImageIO); measured ~200 MB
 
 
 class Parser(argparse.ArgumentParser):

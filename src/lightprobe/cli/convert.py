@@ -6,8 +6,7 @@ from pathlib import Path
 
 from .common import Number, Triple, add_option, layout_names, load, refuse
 
-READ_WORKING_BYTES_PER_PIXEL = 96  # the source's padded copy and geometry tables during resampling
-WRITE_BYTES_PER_PIXEL = 48  # the flat output image, its tone-mapped or encoded copy, the read-back check
+WRITE_BYTES_PER_PIXEL = 40  # the flat output image, its tone-mapped or encoded copy, the read-back check
 
 
 def register(sub) -> None:
@@ -45,8 +44,8 @@ def run(args) -> None:
     rotation = as_rotation(args.rotate) if args.rotate is not None else None
     header = image_header(args.src)
     out_pixels = check_size(target, args.size or target.default_size(header.pixels))
-    env = load(args.src, args.layout, working_bytes_per_pixel=READ_WORKING_BYTES_PER_PIXEL,
-               extra_bytes=resample_memory(0, out_pixels) + out_pixels * WRITE_BYTES_PER_PIXEL,
+    env = load(args.src, args.layout, extra_bytes=resample_memory(header.pixels, out_pixels, target)
+               + out_pixels * WRITE_BYTES_PER_PIXEL,
                what=f"converting {args.src} ({header.width}×{header.height}) to {args.to} ({out_pixels} pixels)")
     out = resample(env, target, args.size, rotation=rotation)
     out.save(args.dst, half=args.half, exposure=args.exposure, curve=args.curve, inputs=[args.src])

@@ -5,8 +5,9 @@ from __future__ import annotations
 from .common import add_probe, load, print_json
 
 # Peak bytes per pixel beyond reading: the direction and solid-angle tables (float64) and their temporaries, the
-# valid pixels' copy and the bad-pixel masks (measured on 2048×1024 and 4096×2048 maps; see tests/test_limits.py).
-WORKING_BYTES_PER_PIXEL = 200
+# valid pixels' copy and the bad-pixel masks (measured 89 B/px in all on 2048×1024 and 4096×2048 maps, reading
+# included; tests/test_limits.py holds every estimate between the measured peak and 3× it).
+WORKING_BYTES_PER_PIXEL = 72
 
 
 def register(sub) -> None:

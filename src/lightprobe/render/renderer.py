@@ -11,8 +11,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import UsageError
-from ..limits import check_memory
+from ..errors import BudgetError, UsageError
+from ..limits import check_memory, max_triangles
 from .methods import Method
 from .raycast import Tracer
 from .scene import Scene
@@ -31,9 +31,9 @@ class Rendering:
 
 # Peak bytes per camera sample: rays, hits with their attributes, shading temporaries (measured in
 # tests/test_limits.py), and per triangle: our arrays and Embree's BVH.
-BYTES_PER_SAMPLE = 900
+BYTES_PER_SAMPLE = 400  # ~315 B measured
 BYTES_PER_TRIANGLE = 200
-BASE_BYTES = 450 << 20
+BASE_BYTES = 256 << 20
 
 
 def render_memory(scene: Scene, spp: int) -> int:
@@ -47,6 +47,9 @@ def render(scene: Scene, method: Method, spp: int = 1, tracer: Tracer | None = N
     estimated memory is checked against the budget (:mod:`lightprobe.limits`) before any ray is cast."""
     if not 1 <= spp <= 16:
         raise UsageError("spp must be within 1..16")
+    if scene.triangle_count > max_triangles():
+        raise BudgetError(f"refusing the scene: {scene.triangle_count} triangles is over the limit of "
+                          f"{max_triangles()} (set LIGHTPROBE_MAX_TRIANGLES to raise it)")
     check_memory(render_memory(scene, spp), f"rendering {scene.camera.width}x{scene.camera.height} at {spp}x{spp} "
                                             "samples per pixel")
     seconds = {}

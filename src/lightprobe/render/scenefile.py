@@ -16,6 +16,7 @@ A scene file::
 its lowest point on the ground plane; then ``scale`` and ``translate`` apply. Albedo is linear RGB reflectance in
 [0, 1]; ``texture`` (an image file) with the mesh's UVs overrides it.
 
+Top-level keys starting with ``_`` are ignored: a place for YAML anchors (``_white: &white {albedo: [1, 1, 1]}``).
 Every field is checked for its type and range (:data:`RANGES`), unknown fields are refused (a typo is not silently
 ignored), and errors name the field (``scene: meshes[2].radius must be a number …``) without echoing more than a
 few characters of the value. The file is bounded as loaded: at most :data:`MAX_FILE_BYTES`, at most
@@ -55,7 +56,8 @@ class _Fields:
     def __init__(self, spec, where: str, allowed: set[str]):
         if not isinstance(spec, dict):
             raise InputError(f"scene: {where} must be a mapping, got {short(spec)}")
-        unknown = sorted(str(k) for k in spec if k not in allowed)
+        unknown = sorted(str(k) for k in spec if k not in allowed
+                         and not (where == "the top level" and isinstance(k, str) and k.startswith("_")))
         if unknown:
             raise InputError(f"scene: unknown field {short(unknown[0])} in {where} (known: {', '.join(sorted(allowed))})")
         self.spec, self.where = spec, where
