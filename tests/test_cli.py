@@ -133,3 +133,20 @@ def test_demo_writes_a_report_with_pictures(tmp_path, capsys):
     for name in ("latlong", "angular", "sphere", "cube", "cross", "hcross"):
         assert f"layout_{name}.png" in index and (tmp_path / "report" / f"layout_{name}.png").stat().st_size > 1000
     assert "∫L dω" in index
+    assert "render_reference.png" in index and "Mitsuba 3." in index  # the ground truth is there, not excused
+    assert (tmp_path / "report" / "render_reference.png").stat().st_size > 1000
+
+
+def test_demo_fails_when_the_reference_fails(tmp_path, monkeypatch):
+    """Only a missing Mitsuba is excused in the report; a reference that breaks fails the demo."""
+    import lightprobe.demo as demo
+    from lightprobe.render import reference
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("the reference broke")
+
+    monkeypatch.setattr(reference, "reference_render", broken)
+    monkeypatch.setattr(demo, "SECTIONS", [demo.section_render])
+    with pytest.raises(RuntimeError, match="reference broke"):
+        demo.run_demo(read_envmap(shared("ict_lowres/grace.hdr")), tmp_path / "r")
+    assert not (tmp_path / "r").exists()

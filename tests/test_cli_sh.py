@@ -9,7 +9,9 @@ import pytest
 
 from conftest import shared
 from lightprobe.envmap import read_envmap
-from lightprobe.export import TARGETS
+from lightprobe.io import write_image
+from lightprobe.layouts import LATLONG
+from test_export import EVALUATORS
 from test_cli import assert_clean_failure, run
 
 
@@ -55,14 +57,35 @@ def test_error_command_json(capsys):
     rows = json.loads(out)
     assert code == 0 and len(rows) == 8
     assert {r["window"].split("(")[0].split(":")[0] for r in rows} == {"none", "hanning", "lanczos", "auto"}
-    assert all(r["paper_mean"] >= 0 for r in rows)
 
 
-@pytest.mark.parametrize("target", TARGETS)
+def test_error_command_against_the_analytic_error(tmp_path, capsys):
+    """L(d) = 1 + a·d_z: E(n) = π + (2π/3) a n_z exactly, so order 0 misses (2π/3)|a n_z| and, with ∫L dω = 4π,
+    the paper's measure is |a| |n_z| / 6: mean |a|/12 over uniform normals, max |a|/6; order ≥ 1 is exact."""
+    a = 0.5
+    d = LATLONG.directions(LATLONG.grid_shape(256))
+    write_image(tmp_path / "tilt.exr", (1 + a * d[..., 2:3]) * np.ones(3, np.float32))
+    code, out, _ = run(capsys, "error", tmp_path / "tilt.exr", "--order", "0,1,2", "--window", "none",
+                       "--normals", 4000, "--json")
+    rows = {r["l_max"]: r for r in json.loads(out)}
+    assert code == 0
+    assert rows[0]["paper_mean"] == pytest.approx(a / 12, rel=2e-3)
+    assert rows[0]["paper_max"] == pytest.approx(a / 6, rel=2e-3)
+    for l in (1, 2):
+        assert rows[l]["paper_max"] < 2e-4 and rows[l]["relative_max"] < 1e-3
+
+
+@pytest.mark.parametrize("target", list(EVALUATORS))
 def test_export_command(tmp_path, capsys, target):
+    """Each file the command writes for a white furnace (a uniform map of radiance 1), read by the engine's own
+    formula written in test_export.py: a white Lambertian surface shows E/π = 1 for every normal."""
+    evaluate, options = EVALUATORS[target]
+    white = write_image(tmp_path / "white.exr", np.ones((64, 128, 3), np.float32))
     out = tmp_path / f"probe.{'cs' if target == 'unity' else 'txt'}"
-    code, _, _ = run(capsys, "export", "--to", target, "-o", out)
-    assert code == 0 and out.stat().st_size > 100
+    extra = ["--gltf-scaling", options["gltf_scaling"]] if "gltf_scaling" in options else []
+    code, _, _ = run(capsys, "export", white, "--to", target.split("-")[0], "-o", out, *extra)
+    assert code == 0
+    np.testing.assert_allclose(evaluate(out.read_text()), 1.0, rtol=3e-4)
 
 
 def test_design_command(tmp_path, capsys):

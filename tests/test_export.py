@@ -143,10 +143,17 @@ def glsl_irradiance_over_pi(text: str) -> np.ndarray:
 
 
 def json_irradiance_over_pi(text: str) -> np.ndarray:
+    """lightprobe's JSON read as its schema says (radiance L_lm, world frame, no CS phase, flat order), evaluated
+    with the explicit band ≤ 2 polynomials and Â_l = π, 2π/3, π/4 — not with lightprobe's own SHCoeffs."""
     data = json.loads(text)
-    sh = SHCoeffs(np.array(data["coefficients"]))
-    assert data["frame"] == "world" and data["quantity"] == "radiance"
-    return sh.to_irradiance().evaluate(NORMALS) / np.pi
+    assert (data["format"], data["version"], data["frame"], data["quantity"]) == ("lightprobe.sh", 2, "world",
+                                                                                  "radiance")
+    c = np.array(data["coefficients"])[:9]
+    x, y, z = (NORMALS[:, k, None] for k in range(3))
+    basis = [0.282095, 0.488603 * y, 0.488603 * z, 0.488603 * x, 1.092548 * x * y, 1.092548 * y * z,
+             0.315392 * (3 * z * z - 1), 1.092548 * x * z, 0.546274 * (x * x - y * y)]
+    a_hat = [np.pi] + [2 * np.pi / 3] * 3 + [np.pi / 4] * 5
+    return sum(a_hat[i] * c[i] * basis[i] for i in range(9)) / np.pi
 
 
 EVALUATORS = {
@@ -177,9 +184,8 @@ def test_every_target_has_a_golden_test():
 
 def test_filament_text_is_exactly_cmgen_format():
     lines = export(furnace(), "filament").splitlines()
-    assert lines[0] == "( 0.999999999999999,  0.999999999999999,  0.999999999999999); // L00, irradiance, pre-scaled base" \
-        or re.fullmatch(r"\( 1\.000000000000000,  1\.000000000000000,  1\.000000000000000\); // L00, irradiance, "
-                        r"pre-scaled base", lines[0])
+    assert lines[0] == "( 1.000000000000000,  1.000000000000000,  1.000000000000000); // L00, irradiance, pre-scaled base"
+    assert lines[1] == "( 0.000000000000000,  0.000000000000000,  0.000000000000000); // L1-1, irradiance, pre-scaled base"
     assert len(lines) == 9 and lines[8].endswith("// L22, irradiance, pre-scaled base")
 
 

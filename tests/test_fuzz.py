@@ -78,7 +78,8 @@ def test_mutated_headers(tmp_path, ext, edits):
 @given(w=st.integers(1, 70000), h=st.integers(1, 70000))
 @settings(max_examples=40, deadline=5000, suppress_health_check=[HealthCheck.function_scoped_fixture])
 def test_hdr_header_sizes(tmp_path, w, h):
-    """Any claimed size: refused or read, never an allocation of the claimed size for a short file."""
+    """Any claimed size: a clean refusal or a valid image, never another exception. (That no memory of the claimed
+    size is allocated is measured in test_hardening.py::test_f10_the_hdr_reader_never_allocates_…)"""
     path = tmp_path / "s.hdr"
     path.write_bytes(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y %d +X %d\n" % (h, w) + b"\x02\x02\x00\x10" * 8)
     _read_or_clean_error(path)

@@ -90,9 +90,14 @@ def check_pixels(count: int, what: str) -> None:
                           "(set LIGHTPROBE_MAX_PIXELS to raise it)")
 
 
-def check_memory(estimate: int, what: str) -> None:
-    """Refuse work whose estimated peak memory ``estimate`` (bytes) exceeds :func:`max_memory`."""
+PROCESS_BYTES = 256 << 20  # resident memory of lightprobe before any data (Python, numpy, numba, OpenImageIO): ~200 MB
+
+
+def check_memory(work_bytes: int, what: str) -> None:
+    """Refuse work whose estimated peak, :data:`PROCESS_BYTES` plus ``work_bytes`` (the data's own memory), exceeds
+    :func:`max_memory`."""
     limit = max_memory()
+    estimate = PROCESS_BYTES + work_bytes
     if estimate > limit:
         raise BudgetError(f"refusing {what}: it needs about {gib(estimate)} of memory, over the limit of {gib(limit)} "
                           "(set LIGHTPROBE_MAX_MEMORY to raise it)")

@@ -11,7 +11,6 @@ from pathlib import Path
 
 from ..errors import LightprobeError, UsageError
 
-BASE_MEMORY = 256 << 20  # resident memory of a command before its data (Python, numpy, numba, OpenImageIO); measured ~200 MB
 
 
 class Parser(argparse.ArgumentParser):
@@ -154,7 +153,7 @@ def load(path: Path | None, layout: str | None, fix: bool = True, working_bytes_
 
     source = probe_path(path)
     header = image_header(source)
-    check_memory(BASE_MEMORY + header.read_bytes() + header.pixels * working_bytes_per_pixel + extra_bytes,
+    check_memory(header.read_bytes() + header.pixels * working_bytes_per_pixel + extra_bytes,
                  what or f"{source} ({header.width}×{header.height} pixels)")
     return read_envmap(source, layout, fix=fix)
 

@@ -25,7 +25,8 @@ def register(sub) -> None:
 def run(args) -> None:
     from ..envmap import repair
     from ..files import check_output
-    from ..io import read_image, write_image
+    from ..io import image_header, read_image, write_image
+    from ..limits import check_memory
     from ..render.compare import compare, error_heatmap, hdr_flip
     from ..tonemap import heatmap
 
@@ -33,8 +34,11 @@ def run(args) -> None:
     for out in (args.heatmap, args.flipmap):
         if out is not None:
             check_output(out, inputs)
-    test = repair(read_image(args.test, WORKING_BYTES_PER_PIXEL), str(args.test))
-    ref = repair(read_image(args.reference, WORKING_BYTES_PER_PIXEL), str(args.reference))
+    headers = [image_header(p) for p in inputs]
+    check_memory(sum(h.read_bytes() + h.pixels * WORKING_BYTES_PER_PIXEL for h in headers),
+                 f"comparing {args.test} with {args.reference}")
+    test = repair(read_image(args.test), str(args.test))
+    ref = repair(read_image(args.reference), str(args.reference))
     metrics = compare(test, ref)
     if args.heatmap:
         write_image(args.heatmap, error_heatmap(test, ref), encoded=True, inputs=inputs)

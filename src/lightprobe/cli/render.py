@@ -70,6 +70,12 @@ def run(args) -> None:
     lo, hi = SPP_RANGES[args.method]
     if not lo <= spp <= hi:
         refuse(f"--spp for {args.method} must be within {lo}..{hi}, got {spp}")
+    if args.size is not None and args.method != "reference":  # refuse before reading anything when the size says so
+        from ..limits import check_memory
+        from ..render.renderer import render_memory
+
+        check_memory(render_memory(*args.size, spp, 0), f"rendering {args.size[0]}x{args.size[1]} at {spp}x{spp} "
+                                                        "samples per pixel")
     scene = scene_for(args)  # both renderers check their memory estimate against the budget before they start
     if args.method == "reference":
         from ..render.reference import reference_render

@@ -136,13 +136,13 @@ def scene_dict(mi, scene: Scene, folder: Path, spp: int, global_illumination: bo
 
 REFERENCE_BYTES_PER_PIXEL = 96  # Mitsuba's film (RGBA + weight, float32), its tensor and our float32 copy
 BYTES_PER_TRIANGLE = 200  # our arrays, the PLY written for Mitsuba, and Mitsuba's own copy with its BVH
-BASE_BYTES = 384 << 20  # Python with Mitsuba and Dr.Jit's LLVM backend loaded (~340 MB measured)
+MITSUBA_BYTES = 128 << 20  # Mitsuba and Dr.Jit's LLVM backend loaded (~340 MB measured with the rest)
 
 
 def reference_memory(scene: Scene) -> int:
     """Estimated peak memory (bytes) of :func:`reference_render` (measured in tests/test_limits.py)."""
     cam = scene.camera
-    return (BASE_BYTES + cam.width * cam.height * REFERENCE_BYTES_PER_PIXEL
+    return (MITSUBA_BYTES + cam.width * cam.height * REFERENCE_BYTES_PER_PIXEL
             + scene.triangle_count * BYTES_PER_TRIANGLE + scene.environment.data.size * 16)
 
 

@@ -33,13 +33,12 @@ class Rendering:
 # tests/test_limits.py), and per triangle: our arrays and Embree's BVH.
 BYTES_PER_SAMPLE = 400  # ~315 B measured
 BYTES_PER_TRIANGLE = 200
-BASE_BYTES = 256 << 20
 
 
-def render_memory(scene: Scene, spp: int) -> int:
-    """Estimated peak memory (bytes) of :func:`render` with spp × spp samples per pixel."""
-    samples = scene.camera.width * scene.camera.height * spp * spp
-    return BASE_BYTES + samples * BYTES_PER_SAMPLE + scene.triangle_count * BYTES_PER_TRIANGLE
+def render_memory(width: int, height: int, spp: int, triangles: int) -> int:
+    """Estimated memory (bytes, beyond the process itself) of :func:`render` of a width × height image with
+    spp × spp samples per pixel."""
+    return width * height * spp * spp * BYTES_PER_SAMPLE + triangles * BYTES_PER_TRIANGLE
 
 
 def render(scene: Scene, method: Method, spp: int = 1, tracer: Tracer | None = None) -> Rendering:
@@ -50,7 +49,7 @@ def render(scene: Scene, method: Method, spp: int = 1, tracer: Tracer | None = N
     if scene.triangle_count > max_triangles():
         raise BudgetError(f"refusing the scene: {scene.triangle_count} triangles is over the limit of "
                           f"{max_triangles()} (set LIGHTPROBE_MAX_TRIANGLES to raise it)")
-    check_memory(render_memory(scene, spp), f"rendering {scene.camera.width}x{scene.camera.height} at {spp}x{spp} "
+    check_memory(render_memory(scene.camera.width, scene.camera.height, spp, scene.triangle_count), f"rendering {scene.camera.width}x{scene.camera.height} at {spp}x{spp} "
                                             "samples per pixel")
     seconds = {}
     t0 = time.perf_counter()
