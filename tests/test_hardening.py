@@ -624,3 +624,47 @@ def test_demo_timings_are_warm(tmp_path, monkeypatch):
     assert "compiling the numba kernels" in page
     ms = float(re.search(r"SH projection, order 2</td><td>([\d.]+) ms", page).group(1))
     assert ms < 200, ms  # warm: a 1024×512 map projects in a few ms (the cold figure was 1327 ms)
+
+
+def test_f23_under_a_process_memory_cap_the_reference_is_refused_not_a_crash(tmp_path):
+    """Under ``ulimit -v`` Mitsuba segfaulted at 4096² (exit 139: its own passes of 2³¹ samples); now the address
+    space left is checked first, while a small render under the same cap still runs."""
+    def cap():
+        resource.setrlimit(resource.RLIMIT_AS, (5 << 29, 5 << 29))  # 2.5 GiB
+
+    res = lightprobe("render", "-m", "reference", "--size", "4096x4096", "-o", tmp_path / "big.exr", preexec_fn=cap)
+    clean_failure(res, "ulimit -v")
+    res = lightprobe("render", "-m", "reference", "--size", "32x32", "--spp", 4, "-o", tmp_path / "small.exr",
+                     preexec_fn=cap)
+    assert res.returncode == 0, res.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["small.exr"]
+
+
+def test_the_reference_renders_in_bounded_passes(monkeypatch):
+    """A white sphere in a white furnace shows radiance 1: rendered in eight one-sample passes (counted) it still
+    averages 1 (each pass alone is noisy: Mitsuba samples the emitter and the BSDF)."""
+    from lightprobe.render import reference
+    from lightprobe.render.scene import sphere_scene
+
+    monkeypatch.setattr(reference, "SAMPLES_PER_PASS", 16 * 16)
+    calls = []
+    real = reference._render_in_passes
+
+    def spy(mi, loaded, pixels, spp, seed):
+        original = mi.render
+
+        def counted(*args, **kwargs):
+            calls.append(kwargs["spp"])
+            return original(*args, **kwargs)
+
+        mi.render = counted
+        try:
+            return real(mi, loaded, pixels, spp, seed)
+        finally:
+            mi.render = original
+
+    monkeypatch.setattr(reference, "_render_in_passes", spy)
+    scene = sphere_scene(EnvMap(np.ones(LATLONG.grid_shape(8) + (3,), np.float32), LATLONG), 16)
+    result = reference.reference_render(scene, spp=8)
+    assert calls == [1] * 8
+    assert abs(float(result.image.mean()) - 1.0) < 0.01 and float(np.abs(result.image - 1).max()) < 0.5

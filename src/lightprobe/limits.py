@@ -93,11 +93,16 @@ def check_pixels(count: int, what: str) -> None:
 PROCESS_BYTES = 256 << 20  # resident memory of lightprobe before any data (Python, numpy, numba, OpenImageIO): ~200 MB
 
 
-def check_memory(work_bytes: int, what: str) -> None:
+def check_memory(work_bytes: int, what: str, virtual_bytes: int = 0) -> None:
     """Refuse work whose estimated peak, :data:`PROCESS_BYTES` plus ``work_bytes`` (the data's own memory), exceeds
-    :func:`max_memory`."""
+    :func:`max_memory`. ``virtual_bytes``: address space the work maps beyond what it touches (a JIT's
+    reservations), which counts only against a ``ulimit -v``."""
     limit = max_memory()
     estimate = PROCESS_BYTES + work_bytes
+    left = _address_space_left()
+    if left is not None and work_bytes + virtual_bytes > left:
+        raise BudgetError(f"refusing {what}: it needs about {gib(work_bytes + virtual_bytes)} of address space, "
+                          f"over the {gib(left)} that the process limit (ulimit -v) leaves")
     if estimate > limit:
         raise BudgetError(f"refusing {what}: it needs about {gib(estimate)} of memory, over the limit of {gib(limit)} "
                           "(set LIGHTPROBE_MAX_MEMORY to raise it)")

@@ -136,6 +136,7 @@ def scene_dict(mi, scene: Scene, folder: Path, spp: int, global_illumination: bo
 
 REFERENCE_BYTES_PER_PIXEL = 96  # Mitsuba's film (RGBA + weight, float32), its tensor and our float32 copy
 BYTES_PER_TRIANGLE = 200  # our arrays, the PLY written for Mitsuba, and Mitsuba's own copy with its BVH
+MITSUBA_ADDRESS_SPACE = 256 << 20  # address space Mitsuba maps after the check beyond its data (~50 MB measured)
 MITSUBA_BYTES = 128 << 20  # Mitsuba and Dr.Jit's LLVM backend loaded (~340 MB measured with the rest)
 
 
@@ -161,6 +162,22 @@ def _sweep_stale_folders() -> None:
             shutil.rmtree(entry, ignore_errors=True)
 
 
+SAMPLES_PER_PASS = 1 << 24  # Dr.Jit evaluates a pass as one wavefront: its memory grows with samples per pass
+
+
+def _render_in_passes(mi, loaded, pixels: int, spp: int, seed: int) -> np.ndarray:
+    """``mi.render`` in passes of at most :data:`SAMPLES_PER_PASS` samples (at least one per pixel), averaged by
+    their sample counts; pass k uses seed + k. One pass (same seed) when the whole render fits in it."""
+    per_pass = max(1, min(spp, SAMPLES_PER_PASS // max(pixels, 1)))
+    total, done, k = None, 0, 0
+    while done < spp:
+        n = min(per_pass, spp - done)
+        image = np.array(mi.render(loaded, spp=n, seed=seed + k), dtype=np.float64) * n
+        total = image if total is None else total + image
+        done, k = done + n, k + 1
+    return (total / spp).astype(np.float32)
+
+
 def reference_render(scene: Scene, spp: int = 64, global_illumination: bool = False, seed: int = 0,
                      variant: str | None = None) -> Rendering:
     """Path-trace ``scene`` with Mitsuba 3: radiance (H, W, 3), ``spp`` samples per pixel.
@@ -173,7 +190,8 @@ def reference_render(scene: Scene, spp: int = 64, global_illumination: bool = Fa
 
     if not 1 <= spp <= 1 << 16:
         raise LightprobeError("reference samples per pixel must be within 1..65536")
-    check_memory(reference_memory(scene), f"the Mitsuba reference of {scene.camera.width}x{scene.camera.height}")
+    check_memory(reference_memory(scene), f"the Mitsuba reference of {scene.camera.width}x{scene.camera.height}",
+                 virtual_bytes=MITSUBA_ADDRESS_SPACE)
     mi = mitsuba(variant)
     _sweep_stale_folders()
     t0 = time.perf_counter()
@@ -181,7 +199,7 @@ def reference_render(scene: Scene, spp: int = 64, global_illumination: bool = Fa
         loaded = mi.load_dict(scene_dict(mi, scene, Path(tmp), spp, global_illumination, seed))
     t_load = time.perf_counter() - t0
     t0 = time.perf_counter()
-    image = np.array(mi.render(loaded, spp=spp, seed=seed), dtype=np.float32)[..., :3]
+    image = _render_in_passes(mi, loaded, scene.camera.width * scene.camera.height, spp, seed)[..., :3]
     transport = "global illumination" if global_illumination else "direct lighting"
     return Rendering(image, np.ones(image.shape[:2], np.float32),
                      f"Mitsuba {mi.__version__} {mi.variant()}, {transport}, {spp} spp",
