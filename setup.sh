@@ -8,7 +8,8 @@ set -euo pipefail
 cd "$(dirname "$0")"
 
 extras="[reference]"
-[ "${1:-}" = "--test" ] && extras="[test,reference]"
+testing=""
+[ "${1:-}" = "--test" ] && extras="[test,reference]" && testing=1
 
 python3 -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else 1)' || {
   echo "setup.sh: lightprobe needs Python 3.11 or newer as python3" >&2; exit 2; }
@@ -29,6 +30,11 @@ apt_install() {  # apt_install required|optional PACKAGE...
 
 required=()
 python3 -c 'import venv, ensurepip' 2>/dev/null || required+=(python3-venv)
+if [ -n "$testing" ]; then  # the engine tests: three.js in Debian's Chromium (Playwright drives it), Babylon.js in Node
+  [ -x /usr/bin/chromium ] || required+=(chromium)
+  command -v node >/dev/null || required+=(nodejs)
+  command -v npm >/dev/null || required+=(npm)
+fi
 apt_install required "${required[@]}"
 if ! ls /usr/lib/*/libLLVM-19.so* /usr/lib/llvm-19/lib/libLLVM* >/dev/null 2>&1; then
   apt_install optional libllvm19  # Mitsuba's fast LLVM variant; the reference falls back to scalar_rgb without it
@@ -43,4 +49,13 @@ if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ] || ! .venv/bin/python -c 'import
   .venv/bin/python -m pip install -q --disable-pip-version-check --upgrade pip
   .venv/bin/python -m pip install -q --disable-pip-version-check -e ".${extras}"
   echo "$want" > "$stamp"
+fi
+
+# The engines the tests run our exports in, pinned by engines/package-lock.json (never copied into the repository).
+if [ -n "$testing" ]; then
+  lock="engines/node_modules/.lightprobe-lock"
+  if [ "$(cat "$lock" 2>/dev/null)" != "$(sha256sum engines/package-lock.json | cut -c1-16)" ]; then
+    (cd engines && npm ci --no-audit --no-fund --loglevel=error >/dev/null)
+    sha256sum engines/package-lock.json | cut -c1-16 > "$lock"
+  fi
 fi

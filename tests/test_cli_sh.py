@@ -82,7 +82,8 @@ def test_export_command(tmp_path, capsys, target):
     evaluate, options = EVALUATORS[target]
     white = write_image(tmp_path / "white.exr", np.ones((64, 128, 3), np.float32))
     out = tmp_path / f"probe.{'cs' if target == 'unity' else 'txt'}"
-    extra = ["--gltf-scaling", options["gltf_scaling"]] if "gltf_scaling" in options else []
+    extra = (["--gltf-scaling", options["gltf_scaling"]] if "gltf_scaling" in options else []) + (
+        ["--frame", options["frame"]] if "frame" in options else [])
     code, _, _ = run(capsys, "export", white, "--to", target.split("-")[0], "-o", out, *extra)
     assert code == 0
     np.testing.assert_allclose(evaluate(out.read_text()), 1.0, rtol=3e-4)

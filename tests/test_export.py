@@ -45,10 +45,15 @@ UNITY_FLIP = np.array([1.0, 1.0, -1.0])  # world → Unity / Babylon (left-hande
 
 
 # ---- the engines' reconstruction formulas ---------------------------------------------------------------------------
+THREEJS_OF_WORLD = np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])  # three's equirectUv: (−z, y, x)
+
+
 def threejs_irradiance_over_pi(text: str) -> np.ndarray:
-    """three.js SphericalHarmonics3.getIrradianceAt (E), then the Lambert BRDF 1/π."""
+    """three.js SphericalHarmonics3.getIrradianceAt (E), then the Lambert BRDF 1/π, at the normal as three.js
+    places it when it shows the same panorama (u = atan(z, x)/2π + ½: world (x, y, z) is three's (−z, y, x))."""
     sh = np.array(json.loads(text)["object"]["sh"]).reshape(9, 3)
-    x, y, z = (NORMALS[:, k, None] for k in range(3))
+    n3 = NORMALS @ THREEJS_OF_WORLD.T
+    x, y, z = (n3[:, k, None] for k in range(3))
     e = (sh[0] * 0.886227 + sh[1] * 2 * 0.511664 * y + sh[2] * 2 * 0.511664 * z + sh[3] * 2 * 0.511664 * x
          + sh[4] * 2 * 0.429043 * x * y + sh[5] * 2 * 0.429043 * y * z + sh[6] * (0.743125 * z * z - 0.247708)
          + sh[7] * 2 * 0.429043 * x * z + sh[8] * 0.429043 * (x * x - y * y))
@@ -82,41 +87,50 @@ def unity_irradiance_over_pi(text: str) -> np.ndarray:
     return out
 
 
-def babylon_from_harmonics_over_pi(cs_radiance: np.ndarray, n: np.ndarray) -> np.ndarray:
-    """Babylon's SphericalPolynomial.FromHarmonics (CS-phase radiance → E/π polynomial), then its evaluation.
-    (Babylon's 0.886277 is used as written: its 5.6e-5 relative misprint is inside the tolerance.)"""
-    h = cs_radiance
+def babylon_from_harmonics(h: np.ndarray) -> dict:
+    """Babylon's SphericalPolynomial.FromHarmonics as written (CS-phase harmonics → polynomial, ÷π included;
+    its 0.886277 misprint is 5.6e-5 relative, inside the tolerance)."""
     p = {"x": -1.02333 * h[3], "y": -1.02333 * h[1], "z": 1.02333 * h[2],
          "xx": 0.886277 * h[0] - 0.247708 * h[6] + 0.429043 * h[8],
          "yy": 0.886277 * h[0] - 0.247708 * h[6] - 0.429043 * h[8],
          "zz": 0.886277 * h[0] + 0.495417 * h[6],
          "yz": -0.858086 * h[5], "zx": -0.858086 * h[7], "xy": 0.858086 * h[4]}
-    p = {k: v / np.pi for k, v in p.items()}
-    return evaluate_polynomial(p, n)
+    return {k: v / np.pi for k, v in p.items()}
 
 
-def evaluate_polynomial(p: dict, n: np.ndarray) -> np.ndarray:
-    x, y, z = (n[:, k, None] for k in range(3))
-    return (p["x"] * x + p["y"] * y + p["z"] * z + p["xx"] * x * x + p["yy"] * y * y + p["zz"] * z * z
-            + p["yz"] * y * z + p["zx"] * z * x + p["xy"] * x * y)
+def babylon_default_shader_over_pi(p: dict, n: np.ndarray) -> np.ndarray:
+    """What Babylon's default PBR path (useSphericalHarmonics) renders from a SphericalPolynomial: its
+    preScaledHarmonics = SphericalHarmonics.FromPolynomial (constants as in Babylon's source) × the
+    SH3ylmBasisConstants, evaluated by the shader's computeEnvironmentIrradiance. Returns E/π."""
+    h = [0.376127 * p["xx"] + 0.376127 * p["yy"] + 0.376126 * p["zz"], -0.977204 * p["y"], 0.977204 * p["z"],
+         -0.977204 * p["x"], 1.16538 * p["xy"], -1.16538 * p["yz"],
+         1.34567 * p["zz"] - 0.672834 * p["xx"] - 0.672834 * p["yy"], -1.16538 * p["zx"],
+         1.16538 * p["xx"] - 1.16538 * p["yy"]]
+    k = [np.sqrt(1 / (4 * np.pi)), -np.sqrt(3 / (4 * np.pi)), np.sqrt(3 / (4 * np.pi)), -np.sqrt(3 / (4 * np.pi)),
+         np.sqrt(15 / (4 * np.pi)), -np.sqrt(15 / (4 * np.pi)), np.sqrt(5 / (16 * np.pi)),
+         -np.sqrt(15 / (4 * np.pi)), np.sqrt(15 / (16 * np.pi))]
+    s = [np.pi * k[i] * h[i] for i in range(9)]
+    x, y, z = (n[:, j, None] for j in range(3))
+    return (s[0] + s[1] * y + s[2] * z + s[3] * x + s[4] * y * x + s[5] * y * z + s[6] * (3 * z * z - 1)
+            + s[7] * z * x + s[8] * (x * x - y * y))
 
 
 def babylon_irradiance_over_pi(text: str) -> np.ndarray:
+    """The polynomial through Babylon's default shader path; the harmonics field must be what that path uses."""
     data = json.loads(text)
     p = {k: np.array(v) for k, v in zip(data["polynomial_order"], data["polynomial"])}
-    via_polynomial = evaluate_polynomial(p, NORMALS * UNITY_FLIP)
-    via_harmonics = babylon_from_harmonics_over_pi(np.array(data["harmonics"]), NORMALS * UNITY_FLIP)
-    # Babylon's constants are printed to 6 digits (and 0.886277 is a misprint): agreement to ~2e-5 absolute
-    np.testing.assert_allclose(via_polynomial, via_harmonics, rtol=2e-4, atol=2e-5 * np.abs(via_polynomial).max())
-    return via_polynomial
+    shaded = babylon_default_shader_over_pi(p, NORMALS * UNITY_FLIP)
+    again = babylon_default_shader_over_pi(babylon_from_harmonics(np.array(data["harmonics"])), NORMALS * UNITY_FLIP)
+    np.testing.assert_allclose(shaded, again, rtol=2e-4, atol=2e-5 * np.abs(shaded).max())
+    return shaded
 
 
 def gltf_babylon_irradiance_over_pi(text: str) -> np.ndarray:
     """Babylon's EXT_lights_image_based loader: FromArray → ÷π (convertIrradianceToLambertianRadiance) →
-    FromHarmonics."""
+    FromHarmonics, then its default shader path; no handedness change (normals in Babylon's frame)."""
     light = json.loads(text)["extensions"]["EXT_lights_image_based"]["lights"][0]
     c = np.array(light["irradianceCoefficients"]) / np.pi
-    return babylon_from_harmonics_over_pi(c, NORMALS)
+    return babylon_default_shader_over_pi(babylon_from_harmonics(c), NORMALS * UNITY_FLIP)
 
 
 def gltf_literal_irradiance_over_pi(text: str) -> np.ndarray:
@@ -161,8 +175,8 @@ EVALUATORS = {
     "threejs": (threejs_irradiance_over_pi, {}),
     "filament": (filament_irradiance_over_pi, {}),
     "unity": (unity_irradiance_over_pi, {}),
-    "gltf": (gltf_babylon_irradiance_over_pi, {"gltf_scaling": "babylon"}),
-    "gltf-irradiance": (gltf_literal_irradiance_over_pi, {"gltf_scaling": "irradiance"}),
+    "gltf": (gltf_babylon_irradiance_over_pi, {"gltf_scaling": "irradiance"}),
+    "gltf-literal": (gltf_literal_irradiance_over_pi, {"gltf_scaling": "irradiance", "frame": "gltf"}),
     "babylon": (babylon_irradiance_over_pi, {}),
     "glsl": (glsl_irradiance_over_pi, {}),
 }

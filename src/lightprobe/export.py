@@ -22,14 +22,14 @@ import numpy as np
 
 from .errors import UsageError
 from .irradiance import C1, C2, C3, C4, C5
-from .frames import BABYLON, FILAMENT, GLTF, THREEJS, UNITY, WORLD, Frame, frame as frame_named
+from .frames import BABYLON, FILAMENT, THREEJS, UNITY, WORLD, Frame, frame as frame_named
 from .sh import SHCoeffs, a_hat_per_coefficient, name
 from .shfile import sh_json
 
 TARGETS = ("json", "threejs", "filament", "unity", "gltf", "babylon", "glsl")
-DEFAULT_FRAMES = {"json": WORLD, "threejs": THREEJS, "filament": FILAMENT, "unity": UNITY, "gltf": GLTF,
+DEFAULT_FRAMES = {"json": WORLD, "threejs": THREEJS, "filament": FILAMENT, "unity": UNITY, "gltf": BABYLON,
                   "babylon": BABYLON, "glsl": WORLD}
-GLTF_SCALINGS = ("babylon", "irradiance")
+GLTF_SCALINGS = ("irradiance", "pi-radiance")
 
 BASIS_CONSTANTS = np.array([0.5 * np.sqrt(1 / pi)] + [0.5 * np.sqrt(3 / pi)] * 3
                            + [0.5 * np.sqrt(15 / pi)] * 2 + [0.25 * np.sqrt(5 / pi)] + [0.5 * np.sqrt(15 / pi)]
@@ -80,8 +80,9 @@ def export_json(sh: SHCoeffs, frame: Frame = WORLD) -> str:
 
 def threejs_coefficients(sh: SHCoeffs, frame: Frame = THREEJS) -> np.ndarray:
     """three.js ``SphericalHarmonics3``: radiance L_lm (no CS phase; its getAt/getIrradianceAt use +0.488603 y etc.),
-    order L00, L1−1, L10, L11, L2−2, L2−1, L20, L21, L22, three.js world frame (= world). ``getIrradianceAt``
-    returns E; the shader multiplies by the Lambert BRDF (÷π)."""
+    order L00, L1−1, L10, L11, L2−2, L2−1, L20, L21, L22, in the frame three.js shows an equirectangular
+    background in (:data:`lightprobe.frames.THREEJS`: (−z, y, x) of world), so light comes from where the
+    background shows it. ``getIrradianceAt`` returns E; the shader multiplies by the Lambert BRDF (÷π)."""
     return _nine(sh, frame)
 
 
@@ -146,22 +147,24 @@ def export_unity(sh: SHCoeffs, frame: Frame = UNITY, csharp: bool = True) -> str
             + "\n".join(lines) + "\n        return sh;\n    }\n}\n")
 
 
-def gltf_coefficients(sh: SHCoeffs, scaling: str = "babylon", frame: Frame = GLTF) -> np.ndarray:
-    """``EXT_lights_image_based.irradianceCoefficients`` (9 × RGB), glTF frame (= world), CS-phase basis.
+def gltf_coefficients(sh: SHCoeffs, scaling: str = "irradiance", frame: Frame = BABYLON) -> np.ndarray:
+    """``EXT_lights_image_based.irradianceCoefficients`` (9 × RGB), CS-phase basis.
 
-    The extension calls them "irradiance" but fixes neither the basis nor the π: ``scaling`` picks one.
-    ``babylon`` (default): π · L_lm — what Babylon.js's loader, the reference implementation, expects: it divides by
-    π (``convertIrradianceToLambertianRadiance``) and then applies the cosine convolution itself
-    (``SphericalPolynomial.FromHarmonics``). ``irradiance``: E_lm = Â_l L_lm, irradiance SH taken literally."""
+    The extension calls them "irradiance" but fixes neither the basis, nor the π, nor the frame; lightprobe follows
+    its reference consumer, Babylon.js's loader, which reads them as irradiance E_lm (``FromArray``), divides by π
+    (``convertIrradianceToLambertianRadiance``) and builds its polynomial with ``FromHarmonics`` — the same steps its
+    own panorama path takes after convolving — and applies no handedness change to them, so they are stated in
+    Babylon's frame (x, y, −z). ``scaling``: ``irradiance`` (default) E_lm = Â_l L_lm; ``pi-radiance``: π L_lm, the
+    old default, which Babylon's loader renders with the cosine lobe missing (kept for files made that way)."""
     c = to_condon_shortley(_nine(sh, frame))
-    if scaling == "babylon":
-        return times_pi(c)
     if scaling == "irradiance":
         return radiance_to_irradiance(c)
+    if scaling == "pi-radiance":
+        return times_pi(c)
     raise UsageError(f"unknown glTF scaling {scaling!r}; choose {', '.join(GLTF_SCALINGS)}")
 
 
-def export_gltf(sh: SHCoeffs, scaling: str = "babylon", frame: Frame = GLTF) -> str:
+def export_gltf(sh: SHCoeffs, scaling: str = "irradiance", frame: Frame = BABYLON) -> str:
     """The ``EXT_lights_image_based`` light object with ``irradianceCoefficients`` (merge it into a glTF; the
     prefiltered specular images come from the radiance-map part of lightprobe)."""
     c = gltf_coefficients(sh, scaling, frame)
@@ -177,13 +180,12 @@ def export_gltf(sh: SHCoeffs, scaling: str = "babylon", frame: Frame = GLTF) -> 
     }, indent=1)
 
 
-def babylon_polynomial(sh: SHCoeffs, frame: Frame = BABYLON) -> dict[str, np.ndarray]:
-    """Babylon.js ``SphericalPolynomial`` (x, y, z, xx, yy, zz, yz, zx, xy; RGB each) in Babylon's frame
-    (default left-handed: x, y, −z of world): its shader evaluates Σ coefficient × monomial(n) = E(n)/π.
-
-    Derived exactly from eq. 13: the constant c4 L00 − c5 L20 is spread over xx + yy + zz (= 1 on the sphere),
-    as Babylon's ``FromHarmonics`` does (whose 0.886277 is a misprint of c4 = 0.886227)."""
-    L = irradiance_to_lambertian(_nine(sh, frame))  # noqa: N806 - the paper's notation, /π folded in
+def babylon_polynomial_from_harmonics(h: np.ndarray) -> dict[str, np.ndarray]:
+    """Babylon's ``SphericalPolynomial.FromHarmonics`` with exact constants, for harmonics ``h`` in our basis (no CS
+    phase; Babylon's signs on x, y, yz, zx cancel its CS phase): the cosine convolution and ÷π of eq. 13, the
+    constant c4 h00 − c5 h20 spread over xx + yy + zz (= 1 on the sphere). (Babylon's 0.886277 is a misprint of
+    c4 = 0.886227.) Its ``FromPolynomial`` inverts this exactly, giving ``h`` back."""
+    L = irradiance_to_lambertian(h)  # noqa: N806 - the paper's notation, /π folded in
     const = C4 * L[0] - C5 * L[6]
     return {
         "x": 2 * C2 * L[3], "y": 2 * C2 * L[1], "z": 2 * C2 * L[2],
@@ -192,18 +194,37 @@ def babylon_polynomial(sh: SHCoeffs, frame: Frame = BABYLON) -> dict[str, np.nda
     }
 
 
+def babylon_harmonics(sh: SHCoeffs, frame: Frame = BABYLON) -> np.ndarray:
+    """The harmonics Babylon lights with: E/π SH (Â_l L_lm / π), CS phase, Babylon's frame — what its cube path
+    holds after ``convertIncidentRadianceToIrradiance`` and ``convertIrradianceToLambertianRadiance``, and what
+    ``preScaledHarmonics`` (= ``FromPolynomial``) recovers for the default PBR shader (which evaluates E/π)."""
+    return to_condon_shortley(irradiance_to_lambertian(radiance_to_irradiance(_nine(sh, frame))))
+
+
+def babylon_polynomial(sh: SHCoeffs, frame: Frame = BABYLON) -> dict[str, np.ndarray]:
+    """Babylon.js ``SphericalPolynomial`` (x, y, z, xx, yy, zz, yz, zx, xy; RGB each) in Babylon's frame, as Babylon
+    itself makes it from a panorama: ``FromHarmonics`` of the E/π harmonics (:func:`babylon_harmonics`). Babylon's
+    default PBR path turns it back into those harmonics and renders E/π; evaluated directly as a polynomial it
+    would be convolved twice (Babylon's own convention, not a second step of ours)."""
+    e_over_pi = irradiance_to_lambertian(radiance_to_irradiance(_nine(sh, frame)))
+    return babylon_polynomial_from_harmonics(e_over_pi)
+
+
 def export_babylon(sh: SHCoeffs, frame: Frame = BABYLON) -> str:
-    """JSON with the ``polynomial`` (for ``SphericalPolynomial.FromArray`` order x, y, z, xx, yy, zz, yz, zx, xy) and
-    the ``harmonics`` (radiance, CS phase, for ``SphericalHarmonics.FromArray``), both in ``frame``."""
+    """JSON with the ``polynomial`` (for ``SphericalPolynomial.FromArray``, order x, y, z, xx, yy, zz, yz, zx, xy),
+    the ``harmonics`` Babylon lights with (E/π, CS phase, for ``SphericalHarmonics.FromArray``) and, for tools that
+    want them, the ``radiance_harmonics`` (L_lm, CS phase), all in ``frame``."""
     poly = babylon_polynomial(sh, frame)
-    harmonics = to_condon_shortley(_nine(sh, frame))
     order = ["x", "y", "z", "xx", "yy", "zz", "yz", "zx", "xy"]
     return json.dumps({
         "format": "BABYLON.SphericalPolynomial", "frame": frame.name,
         "polynomial_order": order,
         "polynomial": [[float(v) for v in poly[k]] for k in order],
-        "harmonics": [[float(v) for v in row] for row in harmonics],
-        "note": "polynomial evaluates to E/pi; harmonics are radiance L_lm in Babylon's CS-phase basis",
+        "harmonics": [[float(v) for v in row] for row in babylon_harmonics(sh, frame)],
+        "radiance_harmonics": [[float(v) for v in row] for row in to_condon_shortley(_nine(sh, frame))],
+        "note": "polynomial as Babylon's own panorama path makes it (FromHarmonics of E/pi harmonics); harmonics "
+                "are E/pi SH in Babylon's CS-phase basis (its preScaledHarmonics before the basis constants); "
+                "radiance_harmonics are L_lm, CS phase",
     }, indent=1)
 
 
@@ -232,7 +253,7 @@ vec3 lightprobeIrradiance(vec3 n) {{
 """
 
 
-def export(sh: SHCoeffs, target: str, frame: str | Frame | None = None, gltf_scaling: str = "babylon",
+def export(sh: SHCoeffs, target: str, frame: str | Frame | None = None, gltf_scaling: str = "irradiance",
            csharp: bool = True) -> str:
     """Text of ``sh`` for ``target`` (one of :data:`TARGETS`), in the target's frame unless ``frame`` is given."""
     if target not in TARGETS:

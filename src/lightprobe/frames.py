@@ -56,14 +56,23 @@ RH2001 = Frame(
 # Engine frames. three.js, Filament and glTF are right-handed with +Y up and the default camera looking along −Z:
 # the world frame itself. Unity and Babylon.js (by default) are left-handed with +Y up and the camera looking along
 # +Z: the world frame with z negated, so the front of a panorama stays in front of the default camera.
-THREEJS = Frame("threejs", np.eye(3), "three.js world: right-handed, +Y up, camera looks along −Z (= world)")
+# three.js maps an equirectangular image with u = atan(dir.z, dir.x)/2π + ½, v = asin(dir.y)/π + ½ (equirectUv in
+# ShaderChunk/common.glsl.js): its image centre is +X and u = ¾ is +Z, where ours are −Z and +X. The same pixel, so
+# the same light, is at (x₃, y₃, z₃) = (−z, y, x): a user who shows the probe as scene.background and lights with
+# our LightProbe gets light from where the background shows it.
+THREEJS = Frame("threejs", np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]]),
+                "three.js as it shows an equirectangular background: (−z, y, x) of world (image centre at +X)")
+# The world axes are three.js's own axes too (right-handed, +Y up, camera along −Z): for geometry, not panoramas.
+THREEJS_AXES = Frame("threejs-axes", np.eye(3), "three.js world axes without its panorama mapping (= world)")
 FILAMENT = Frame("filament", np.eye(3), "Filament world: right-handed, +Y up, camera looks along −Z (= world)")
 GLTF = Frame("gltf", np.eye(3), "glTF: right-handed, +Y up, default camera looks along −Z (= world)")
 UNITY = Frame("unity", np.diag([1.0, 1.0, -1.0]), "Unity: left-handed, +Y up, +Z forward; (x, y, −z) of world")
+# Babylon (default left-handed scene) shows an equirectangular panorama with its centre at +Z and +X to the right of
+# it: (x, y, −z) of world, the same mirror as its axes (checked against its HDRTools → cube → SH path in Node).
 BABYLON = Frame("babylon", np.diag([1.0, 1.0, -1.0]),
                 "Babylon.js default: left-handed, +Y up, +Z forward; (x, y, −z) of world")
 
-FRAMES: dict[str, Frame] = {f.name: f for f in (WORLD, RH2001, THREEJS, FILAMENT, GLTF, UNITY, BABYLON)}
+FRAMES: dict[str, Frame] = {f.name: f for f in (WORLD, RH2001, THREEJS, THREEJS_AXES, FILAMENT, GLTF, UNITY, BABYLON)}
 
 
 def frame(name: str | Frame) -> Frame:

@@ -341,7 +341,9 @@ class Sphere(_DiscLayout):
     def dir_to_uv(self, d):
         local = np.asarray(d, dtype=np.float64) @ self.camera_axes
         n = local + np.array([0.0, 0.0, 1.0])
-        norm = np.linalg.norm(n, axis=-1)
+        # hypot, not a sum of squares: next to the rim direction n is ~1e-158 and its square would underflow to a
+        # denormal whose square root is off by 1e-10, moving the point 3e-5 off the rim (found by hypothesis)
+        norm = np.hypot(np.hypot(n[..., 0], n[..., 1]), n[..., 2])
         # the direction the camera looks along has no unique normal: any rim point; take the right-hand one
         x = np.where(norm > 0, n[..., 0] / np.where(norm > 0, norm, 1.0), 1.0)
         y = np.where(norm > 0, n[..., 1] / np.where(norm > 0, norm, 1.0), 0.0)

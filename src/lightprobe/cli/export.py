@@ -21,8 +21,9 @@ def register(sub) -> None:
     p.add_argument("--to", "-t", required=True, choices=TARGETS)
     p.add_argument("--output", "-o", type=Path, required=True)
     p.add_argument("--frame", choices=list(FRAMES), help="override the target's own frame")
-    p.add_argument("--gltf-scaling", choices=GLTF_SCALINGS, default="babylon",
-                   help="glTF irradianceCoefficients: pi*L_lm as Babylon.js reads them, or literal irradiance")
+    p.add_argument("--gltf-scaling", choices=GLTF_SCALINGS, default="irradiance",
+                   help="glTF irradianceCoefficients: irradiance E_lm as Babylon.js's loader reads them (default), or "
+                        "pi*L_lm (files of lightprobe 0.1)")
     p.add_argument("--window", choices=WINDOWS, default="none", help="de-ringing window")
     p.set_defaults(run=run)
 

@@ -1,0 +1,113 @@
+"""The engines themselves, for the tests: three.js in headless Chromium (Playwright, Debian's chromium) and Babylon.js
+in Node, both from the npm packages pinned in ../engines/package.json (installed by ``setup.sh --test``).
+
+Nothing here computes lighting: the pages and scripts in ../engines call the engines' own functions, and the
+helpers below only serve files, start the browser once, and compare what comes back.
+"""
+
+from __future__ import annotations
+
+import functools
+import http.server
+import json
+import shutil
+import subprocess
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import ROOT
+
+ENGINES = ROOT / "engines"
+CHROMIUM = "/usr/bin/chromium"
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+
+
+def require_engines() -> None:
+    """Fail (never skip) with what to run when the engines are not installed."""
+    missing = [what for what, ok in (
+        ("engines/node_modules (npm ci in engines/)", (ENGINES / "node_modules" / "three").is_dir()
+         and (ENGINES / "node_modules" / "@babylonjs" / "core").is_dir()),
+        ("node", shutil.which("node") is not None),
+        (CHROMIUM, Path(CHROMIUM).exists())) if not ok]
+    if missing:
+        pytest.fail(f"the engine tests need {', '.join(missing)}: run 'bash setup.sh --test'", pytrace=False)
+
+
+class Server:
+    """A static file server on 127.0.0.1: /engines/… from the repository's engines folder, /files/… from ``files``."""
+
+    def __init__(self, files: Path):
+        engines, files = str(ENGINES), str(files)
+
+        class Handler(http.server.SimpleHTTPRequestHandler):
+            def translate_path(self, path):
+                path = path.split("?", 1)[0]
+                for prefix, folder in (("/engines/", engines), ("/files/", files)):
+                    if path.startswith(prefix):
+                        return str(Path(folder) / path[len(prefix):])
+                return str(Path(files) / "nothing-here")
+
+            def log_message(self, *args):
+                pass
+
+        self.httpd = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Handler)
+        threading.Thread(target=self.httpd.serve_forever, daemon=True).start()
+        self.url = f"http://127.0.0.1:{self.httpd.server_address[1]}"
+
+    def close(self):
+        self.httpd.shutdown()
+
+
+class Browser:
+    """One headless Chromium (SwiftShader WebGL2) for all engine checks."""
+
+    def __init__(self, server: Server):
+        from playwright.sync_api import sync_playwright
+
+        self.playwright = sync_playwright().start()
+        self.browser = self.playwright.chromium.launch(
+            executable_path=CHROMIUM, args=["--enable-unsafe-swiftshader", "--use-angle=swiftshader", "--no-sandbox"])
+        self.server = server
+        self.errors: list[str] = []
+
+    def page(self, name: str):
+        page = self.browser.new_page()
+        page.on("pageerror", lambda e: self.errors.append(str(e)))
+        page.goto(f"{self.server.url}/engines/{name}")
+        page.wait_for_function("window.ready === true", timeout=60000)
+        return page
+
+    def close(self):
+        self.browser.close()
+        self.playwright.stop()
+
+
+def babylon(jobs: dict) -> dict:
+    """Run ../engines/babylon_sh.mjs in Node on ``jobs`` (see that file) and return its answer."""
+    res = subprocess.run(["node", str(ENGINES / "babylon_sh.mjs")], input=json.dumps(jobs), capture_output=True,
+                         text=True, cwd=ENGINES, timeout=300)
+    assert res.returncode == 0, res.stderr[-2000:]
+    return json.loads(res.stdout)
+
+
+# ---- comparisons ----------------------------------------------------------------------------------------------------
+def coefficient_difference(ours: np.ndarray, engine: np.ndarray) -> float:
+    """max |Δc| over the nine coefficients and three channels, relative to the engine's L00 of that channel."""
+    return float((np.abs(ours - engine) / np.abs(engine[0])).max())
+
+
+def band1_angle(ours: np.ndarray, engine: np.ndarray, axes: tuple[int, int, int], signs=(1, 1, 1)) -> float:
+    """Angle (degrees) between the luminance band-1 vectors; ``axes`` are the flat indices holding x, y, z."""
+    def vector(c):
+        return np.array([signs[k] * c[axes[k]] @ LUMINANCE for k in range(3)])
+
+    a, b = vector(ours), vector(engine)
+    return float(np.degrees(np.arccos(np.clip(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)), -1, 1))))
+
+
+def relative(a: np.ndarray, b: np.ndarray) -> float:
+    """|a − b| / b on luminance."""
+    return float(abs((a - b) @ LUMINANCE) / abs(b @ LUMINANCE))

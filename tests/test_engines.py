@@ -1,0 +1,149 @@
+"""Exports proven in the engines' own code (issue 8): three.js r187 in headless Chromium and Babylon.js 9.35 in Node.
+
+For each probe, the engine computes SH from the panorama file itself, the way its users do, and lightprobe's export
+of the *same file* is read by the engine; they must agree: band-1 direction within 3°, coefficients within 3 % of
+L00 (or the engine's own spread between two cube sizes, if larger), and the irradiance the engine computes toward
+its brightest background direction and the opposite one within 3 %. Four probes: two sunny Poly Haven maps, an
+interior, and two synthetic single spots.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from conftest import shared
+from engines import (LUMINANCE, Browser, Server, babylon, band1_angle, coefficient_difference, relative,
+                     require_engines)
+from lightprobe.envmap import EnvMap, read_envmap
+from lightprobe.export import export
+from lightprobe.io import write_image
+from lightprobe.layouts import LATLONG
+from lightprobe.sh import project
+
+pytestmark = pytest.mark.xdist_group("engines")  # one worker, so one browser start for all engine checks
+
+POLYHAVEN = {"rooitou": "polyhaven_1k/rooitou_park_1k.hdr", "venice": "polyhaven_1k/venice_sunset_1k.hdr",
+             "interior": "polyhaven_1k/st_fagans_interior_1k.hdr"}
+SPOTS = {"spot-a": (0.6, 0.5, -0.62), "spot-b": (-0.3, -0.2, 0.93)}  # world directions
+PROBES = list(POLYHAVEN) + list(SPOTS)
+RESULTS: dict = {}  # engine × probe → figures, printed at the end of the module (and quoted in the closing note)
+
+
+def spot_map(direction) -> np.ndarray:
+    """A dim uniform sky with one bright, smooth (Gaussian, 3° wide) spot: smooth, so that the engines' point and
+    bilinear resampling of the panorama into a cube do not alias it."""
+    d = LATLONG.directions(LATLONG.grid_shape(256))
+    s = np.asarray(direction) / np.linalg.norm(direction)
+    angle = np.degrees(np.arccos(np.clip(d @ s, -1, 1)))
+    return (0.02 + 300.0 * np.exp(-(angle / 3.0) ** 2)[..., None] * np.array([1.0, 0.9, 0.8])).astype(np.float32)
+
+
+@pytest.fixture(scope="module")
+def probes(tmp_path_factory):
+    """Each probe as a lat-long Radiance .hdr file: the file the engine reads and the file lightprobe exports."""
+    require_engines()
+    folder = tmp_path_factory.mktemp("engine-probes")
+    files = {name: shared(rel) for name, rel in POLYHAVEN.items()}
+    for name, direction in SPOTS.items():
+        files[name] = write_image(folder / f"{name}.hdr", spot_map(direction))
+    return folder, files
+
+
+@pytest.fixture(scope="module")
+def browser(probes):
+    folder, files = probes
+    for name, path in files.items():
+        target = folder / f"{name}.hdr"
+        if not target.exists():
+            target.symlink_to(path)
+    server = Server(folder)
+    b = Browser(server)
+    yield b
+    b.close()
+    server.close()
+
+
+def ours(path, target: str) -> str:
+    return export(project(read_envmap(path), 2), target)
+
+
+# ---- three.js in Chromium ---------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def three(browser):
+    return browser.page("three.html")
+
+
+@pytest.mark.parametrize("probe", PROBES)
+def test_threejs_lights_from_where_its_background_shows_the_light(three, browser, probes, probe):
+    folder, files = probes
+    url = f"{browser.server.url}/files/{probe}.hdr"
+    engine = {n: np.array(three.evaluate("([u, n]) => window.lightprobe.shFromPanorama(u, n)", [url, n])).reshape(9, 3)
+              for n in (256, 512)}
+    mine = np.array(three.evaluate("t => window.lightprobe.probeFromJSON(t)", ours(files[probe], "threejs"))).reshape(9, 3)
+    spread = coefficient_difference(engine[256], engine[512])
+    diff = coefficient_difference(mine, engine[512])
+    angle = band1_angle(mine, engine[512], axes=(3, 1, 2))  # three.js: coefficient 3 is x, 1 is y, 2 is z
+    # three's brightest background direction: the brightest panorama pixel through its equirectUv mapping
+    image = read_envmap(files[probe]).data
+    row, col = np.unravel_index(np.argmax(image @ LUMINANCE), image.shape[:2])
+    phi, lat = 2 * np.pi * ((col + 0.5) / image.shape[1] - 0.5), np.pi * (0.5 - (row + 0.5) / image.shape[0])
+    sun = np.array([np.cos(phi) * np.cos(lat), np.sin(lat), np.sin(phi) * np.cos(lat)])
+    e = {k: np.array(three.evaluate("([c, n]) => window.lightprobe.irradiance(c, n)",
+                                    [c.reshape(-1).tolist(), [sun.tolist(), (-sun).tolist()]]))
+         for k, c in (("ours", mine), ("engine", engine[512]))}
+    sun_err, anti_err = relative(e["ours"][0], e["engine"][0]), relative(e["ours"][1], e["engine"][1])
+    RESULTS[("three.js r187", probe)] = (diff, spread, angle, sun_err, anti_err)
+    assert not browser.errors, browser.errors
+    assert angle < 3 and diff < max(0.03, spread), (angle, diff, spread)
+    assert sun_err < 0.03 and anti_err < 0.03, (sun_err, anti_err)
+
+
+# ---- Babylon.js in Node -----------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def babylon_answers(probes):
+    _, files = probes
+    jobs = {}
+    for name, path in files.items():
+        jobs[f"{name}/256"] = {"panorama": str(path), "size": 256}
+        jobs[f"{name}/512"] = {"panorama": str(path), "size": 512}
+        jobs[f"{name}/ours"] = {"export": ours(path, "babylon")}
+    return babylon(jobs)
+
+
+def babylon_shader_over_pi(pre: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """Babylon's computeEnvironmentIrradiance over preScaledHarmonics (the numbers Babylon made): E/π."""
+    x, y, z = n
+    basis = np.array([1, y, z, x, y * x, y * z, 3 * z * z - 1, z * x, x * x - y * y])
+    return basis @ pre
+
+
+@pytest.mark.parametrize("probe", PROBES)
+def test_babylon_default_path_renders_our_polynomial_as_its_own(babylon_answers, probe):
+    answer = {k: {f: np.array(v) for f, v in babylon_answers[f"{probe}/{k}"].items()} for k in ("256", "512", "ours")}
+    engine, mine = answer["512"]["preScaledHarmonics"], answer["ours"]["preScaledHarmonics"]
+    spread = coefficient_difference(answer["256"]["preScaledHarmonics"], engine)
+    diff = coefficient_difference(mine, engine)
+    angle = band1_angle(mine, engine, axes=(3, 1, 2), signs=(-1, -1, 1))  # Babylon's pre-scaled x, y carry −
+    coarse = answer["256"]["preScaledHarmonics"]
+    sun = answer["512"]["brightest"]
+    errors, spreads = [], []
+    for n in (sun, -sun):
+        errors.append(relative(babylon_shader_over_pi(mine, n), babylon_shader_over_pi(engine, n)))
+        spreads.append(relative(babylon_shader_over_pi(coarse, n), babylon_shader_over_pi(engine, n)))
+    RESULTS[("Babylon.js 9.35 (Node, default SH path)", probe)] = (diff, spread, angle, *errors)
+    assert angle < 3 and diff < max(0.03, spread), (angle, diff, spread)
+    # Babylon samples the panorama at the nearest pixel (CalcProjectionSpherical rounds), which under-counts a
+    # sub-degree sun by 5-17 % depending on the cube size; where its own result moves that much between two cube
+    # sizes, the irradiance is held to that spread instead of 3 % (said in the closing note of issue 8).
+    assert errors[0] < max(0.03, spreads[0]) and errors[1] < max(0.03, spreads[1]), (errors, spreads)
+
+
+def test_print_the_engine_table():
+    """Not a check: the table of figures (run with -s to see it), after the engine tests of this module."""
+    for (engine, probe), (diff, spread, angle, sun, anti) in sorted(RESULTS.items()):
+        print(f"| {engine} | {probe} | {100 * diff:.2f} % | {100 * spread:.2f} % | {angle:.2f}° | "
+              f"{100 * sun:.2f} % | {100 * anti:.2f} % |")
+    assert json.dumps({str(k): v for k, v in RESULTS.items()})
