@@ -1,15 +1,17 @@
 #!/usr/bin/env bash
 # Set up .venv in the repository root with everything lightprobe needs; running it again is harmless.
-#   bash setup.sh          the package with the Mitsuba 3 reference renderer (the demo shows its ground truth)
-#   bash setup.sh --test   plus the test dependencies
+#   bash setup.sh          the package with the Mitsuba 3 reference renderer (the demo shows its ground truth) and the
+#                          engines the exports are shown in (Debian's chromium + Playwright, Node with the npm
+#                          packages pinned in engines/package-lock.json)
+#   bash setup.sh --test   plus the test dependencies (the engines are required then, not best-effort)
 # Both try Debian's libllvm19 for Mitsuba's fast LLVM variant (without it the reference uses the slower scalar one).
 # Installs Debian packages with apt-get when something needed is missing (as root, or through sudo).
 set -euo pipefail
 cd "$(dirname "$0")"
 
-extras="[reference]"
+extras="[reference,engines]"
 testing=""
-[ "${1:-}" = "--test" ] && extras="[test,reference]" && testing=1
+[ "${1:-}" = "--test" ] && extras="[test,reference,engines]" && testing=1
 
 python3 -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else 1)' || {
   echo "setup.sh: lightprobe needs Python 3.11 or newer as python3" >&2; exit 2; }
@@ -30,12 +32,12 @@ apt_install() {  # apt_install required|optional PACKAGE...
 
 required=()
 python3 -c 'import venv, ensurepip' 2>/dev/null || required+=(python3-venv)
-if [ -n "$testing" ]; then  # the engine tests: three.js in Debian's Chromium (Playwright drives it), Babylon.js in Node
-  [ -x /usr/bin/chromium ] || required+=(chromium)
-  command -v node >/dev/null || required+=(nodejs)
-  command -v npm >/dev/null || required+=(npm)
-fi
 apt_install required "${required[@]}"
+engines=()  # three.js runs in Debian's Chromium (Playwright drives it), Babylon.js in Node
+[ -x /usr/bin/chromium ] || engines+=(chromium)
+command -v node >/dev/null || engines+=(nodejs)
+command -v npm >/dev/null || engines+=(npm)
+apt_install "$([ -n "$testing" ] && echo required || echo optional)" "${engines[@]}"
 if ! ls /usr/lib/*/libLLVM-19.so* /usr/lib/llvm-19/lib/libLLVM* >/dev/null 2>&1; then
   apt_install optional libllvm19  # Mitsuba's fast LLVM variant; the reference falls back to scalar_rgb without it
 fi
@@ -51,11 +53,14 @@ if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ] || ! .venv/bin/python -c 'import
   echo "$want" > "$stamp"
 fi
 
-# The engines the tests run our exports in, pinned by engines/package-lock.json (never copied into the repository).
-if [ -n "$testing" ]; then
-  lock="engines/node_modules/.lightprobe-lock"
-  if [ "$(cat "$lock" 2>/dev/null)" != "$(sha256sum engines/package-lock.json | cut -c1-16)" ]; then
-    (cd engines && npm ci --no-audit --no-fund --loglevel=error >/dev/null)
+# The engines the exports are checked in, pinned by engines/package-lock.json (never copied into the repository).
+lock="engines/node_modules/.lightprobe-lock"
+if command -v npm >/dev/null && [ "$(cat "$lock" 2>/dev/null)" != "$(sha256sum engines/package-lock.json | cut -c1-16)" ]; then
+  if (cd engines && npm ci --no-audit --no-fund --loglevel=error >/dev/null); then
     sha256sum engines/package-lock.json | cut -c1-16 > "$lock"
+  elif [ -n "$testing" ]; then
+    echo "setup.sh: npm ci in engines/ failed" >&2; exit 2
+  else
+    echo "setup.sh: the engines (npm ci in engines/) are not installed; the demo will say so" >&2
   fi
 fi

@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from conftest import shared
-from engines import (LUMINANCE, Browser, Server, babylon, band1_angle, coefficient_difference, relative,
-                     require_engines)
+from lightprobe.engines import (LUMINANCE, Browser, Server, babylon, band1_angle, coefficient_difference,
+                                missing_engines, relative)
 from lightprobe.envmap import EnvMap, read_envmap
 from lightprobe.export import export
 from lightprobe.io import write_image
@@ -44,7 +44,9 @@ def spot_map(direction) -> np.ndarray:
 @pytest.fixture(scope="module")
 def probes(tmp_path_factory):
     """Each probe as a lat-long Radiance .hdr file: the file the engine reads and the file lightprobe exports."""
-    require_engines()
+    if missing_engines():
+        pytest.fail(f"the engine tests need {', '.join(missing_engines())}: run 'bash setup.sh --test'",
+                    pytrace=False)
     folder = tmp_path_factory.mktemp("engine-probes")
     files = {name: shared(rel) for name, rel in POLYHAVEN.items()}
     for name, direction in SPOTS.items():

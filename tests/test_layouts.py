@@ -31,6 +31,7 @@ def test_direction_pixel_direction_round_trip(lay):
 @settings(max_examples=300, deadline=None)
 @example(0.0, 2.225073858507e-311, 1.0)  # found by hypothesis: a denormal away from the angular rim point
 @example(0.0, 5.5629288158559875e-158, -1.0)  # found by hypothesis: its square underflows next to the sphere's rim
+@example(2.2250738585e-313, 2.2250738585e-313, -1.0)  # found by hypothesis: denormals next to the sphere's rim
 def test_round_trip_any_direction(x, y, z):
     d = np.array([x, y, z])
     if np.linalg.norm(d) < 1e-6:

@@ -219,6 +219,94 @@ def section_exports(rep: Report) -> str:
             "white furnace and an analytic point light):</p><ul>" + "".join(links) + "</ul>")
 
 
+def _three_figures(page, url: str, ours_json: str) -> tuple[dict, dict]:
+    """three.js's own SH of the panorama at ``url`` and its reading of our LightProbe JSON, with the figures."""
+    from .engines import LUMINANCE, band1_angle, coefficient_difference, relative
+
+    engine = np.array(page.evaluate("([u, n]) => window.lightprobe.shFromPanorama(u, n)", [url, 512])).reshape(9, 3)
+    mine = np.array(page.evaluate("t => window.lightprobe.probeFromJSON(t)", ours_json)).reshape(9, 3)
+    sun = mine[[3, 1, 2]].T @ LUMINANCE  # three.js: coefficients 3, 1, 2 are x, y, z
+    sun /= np.linalg.norm(sun)
+    e = {k: np.array(page.evaluate("([c, n]) => window.lightprobe.irradiance(c, n)",
+                                   [c.reshape(-1).tolist(), [sun.tolist(), (-sun).tolist()]]))
+         for k, c in (("ours", mine), ("engine", engine))}
+    figures = {"coefficients": coefficient_difference(mine, engine), "angle": band1_angle(mine, engine, (3, 1, 2)),
+               "toward": relative(e["ours"][0], e["engine"][0]), "away": relative(e["ours"][1], e["engine"][1])}
+    return {"ours": mine, "three.js": engine, "peak": float(e["engine"][0] @ LUMINANCE)}, figures
+
+
+def _babylon_figures(panorama: Path, ours_json: str) -> dict:
+    """Babylon.js's own polynomial of the panorama file against ours, both through its default shader path."""
+    from .engines import LUMINANCE, babylon, band1_angle, coefficient_difference, relative
+
+    answer = babylon({"engine": {"panorama": str(panorama.resolve()), "size": 512}, "ours": {"export": ours_json}})
+    engine, mine = (np.array(answer[k]["preScaledHarmonics"]) for k in ("engine", "ours"))
+    sun = np.array(answer["engine"]["brightest"])
+
+    def shade(pre, n):  # Babylon's computeEnvironmentIrradiance over its preScaledHarmonics
+        x, y, z = n
+        return np.array([1, y, z, x, y * x, y * z, 3 * z * z - 1, z * x, x * x - y * y]) @ pre
+
+    return {"coefficients": coefficient_difference(mine, engine),
+            "angle": band1_angle(mine, engine, (3, 1, 2), (-1, -1, 1)),
+            "toward": relative(shade(mine, sun), shade(engine, sun)),
+            "away": relative(shade(mine, -sun), shade(engine, -sun))}
+
+
+def section_engines(rep: Report) -> str:
+    """The exports in the engines' own code: three.js in headless Chromium draws a white sphere lit by our
+    LightProbe and by the LightProbe it computes itself from the same panorama file; Babylon.js in Node computes its
+    own polynomial from that file and reads ours."""
+    import base64
+
+    from .engines import Browser, Server, missing_engines
+    from .envmap import read_envmap
+    from .files import write_bytes
+
+    title = "<h2>Exports in the engines themselves</h2>"
+    missing = missing_engines()
+    if missing:  # only a missing engine is excused; a failing one fails the report
+        return title + f"<p>Not run here: it needs {html.escape(', '.join(missing))} (<code>bash setup.sh</code> " \
+                       "installs them).</p>"
+    folder = rep.out / "engines"
+    folder.mkdir()
+    latlong = rep.env if rep.env.layout.name == "latlong" else rep.env.to("latlong")
+    panorama = write_image(folder / "probe.hdr", latlong.data)  # the one file both the engine and lightprobe read
+    sh = project(read_envmap(panorama), 2)
+    server = Server(folder)
+    browser = Browser(server)
+    try:
+        page = browser.page("three.html")
+        version = page.evaluate("window.lightprobe.version")
+        lights, three = _three_figures(page, f"{server.url}/files/probe.hdr", export(sh, "threejs"))
+        exposure = 0.55 / max(lights["peak"] / np.pi, 1e-9)
+        pictures = []
+        for label in ("ours", "three.js"):
+            for back in (False, True):
+                url = page.evaluate("([c, s, e, b]) => window.lightprobe.renderSphere(c, s, e, b)",
+                                    [lights[label].reshape(-1).tolist(), 256, exposure, back])
+                name = f"engine_three_{'ours' if label == 'ours' else 'own'}_{'back' if back else 'front'}"
+                write_bytes(rep.out / f"{name}.png", base64.b64decode(url.split(",", 1)[1]))
+                side = "three.js's −Z" if back else "three.js's +Z"
+                pictures.append(figure(name, f"three.js r{version}, lit by {'our export' if label == 'ours' else 'its own SH of the file'}, seen from {side}", 200))
+    finally:
+        browser.close()
+        server.close()
+    babylon = _babylon_figures(panorama, export(sh, "babylon"))
+    rows = [[name, f"{100 * f['coefficients']:.2f} %", f"{f['angle']:.2f}°", f"{100 * f['toward']:.2f} %",
+             f"{100 * f['away']:.2f} %"] for name, f in ((f"three.js r{version} (Chromium)", three),
+                                                       ("Babylon.js 9.35 (Node, default SH path)", babylon))]
+    return (title + "<p>Each engine reads the probe's panorama file the way its users load it and computes its own "
+            "lighting; lightprobe's export of the same file is read by the engine too. Spheres: three.js draws a "
+            "white Lambertian sphere with a <code>LightProbe</code> — ours on the left, its own on the right. The "
+            "table gives the largest coefficient difference (relative to L00), the angle between the band-1 "
+            "directions, and the irradiance the engine computes toward the light and away from it (the suite "
+            "requires 3 %, 3° on five probes). Babylon samples panoramas at the nearest pixel, which under-counts "
+            "a small sun; three.js decodes RGBE mantissas /255, a +0.4 % of its own.</p>"
+            '<div class="grid">' + "".join(pictures) + "</div>"
+            + table(["engine", "coefficients", "band-1 angle", "E toward the light", "E away"], rows))
+
+
 def _demo_scene(rep: Report):
     """The bunny on a ground plane if ../shared/data is beside the project (Stanford data may not be shipped),
     else the built-in sphere-and-torus scene; the environment turned so the sun is behind the camera's left."""
@@ -281,7 +369,7 @@ def section_render(rep: Report) -> str:
 
 
 SECTIONS = [section_probe, section_layouts, section_sh, section_irradiance, section_errors, section_design,
-            section_exports, section_render]
+            section_exports, section_engines, section_render]
 
 _STYLE = """body{font:15px/1.45 system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}
 h1{font-size:1.6em}h2{margin-top:2em;border-bottom:1px solid #ccc}table{border-collapse:collapse;margin:1em 0}

@@ -341,12 +341,13 @@ class Sphere(_DiscLayout):
     def dir_to_uv(self, d):
         local = np.asarray(d, dtype=np.float64) @ self.camera_axes
         n = local + np.array([0.0, 0.0, 1.0])
-        # hypot, not a sum of squares: next to the rim direction n is ~1e-158 and its square would underflow to a
-        # denormal whose square root is off by 1e-10, moving the point 3e-5 off the rim (found by hypothesis)
         norm = np.hypot(np.hypot(n[..., 0], n[..., 1]), n[..., 2])
-        # the direction the camera looks along has no unique normal: any rim point; take the right-hand one
-        x = np.where(norm > 0, n[..., 0] / np.where(norm > 0, norm, 1.0), 1.0)
-        y = np.where(norm > 0, n[..., 1] / np.where(norm > 0, norm, 1.0), 0.0)
+        # the direction the camera looks along has no unique normal: any rim point; take the right-hand one. Within
+        # 1e-150 of it the components of n are (near-)denormal and lose digits (hypothesis found 5.6e-158 and
+        # 2.2e-313 moving the point 1e-5 off the rim): those directions are the rim point too, to any precision.
+        on_axis = norm <= 1e-150
+        x = np.where(on_axis, 1.0, n[..., 0] / np.where(on_axis, 1.0, norm))
+        y = np.where(on_axis, 0.0, n[..., 1] / np.where(on_axis, 1.0, norm))
         return np.zeros(local.shape[:-1], dtype=np.int64), (x + 1) / 2, (1 - y) / 2
 
     def uv_density(self, face, u, v):

@@ -1,14 +1,16 @@
-"""The engines themselves, for the tests: three.js in headless Chromium (Playwright, Debian's chromium) and Babylon.js
-in Node, both from the npm packages pinned in ../engines/package.json (installed by ``setup.sh --test``).
+"""The engines themselves, for the tests and the demo: three.js in headless Chromium (Playwright driving Debian's
+``chromium``) and Babylon.js in Node, from the npm packages pinned in the repository's ``engines/package.json``
+(installed by ``setup.sh``; never copied into the repository).
 
-Nothing here computes lighting: the pages and scripts in ../engines call the engines' own functions, and the
-helpers below only serve files, start the browser once, and compare what comes back.
+Nothing here computes lighting: the page and the script in ``engines/`` call the engines' own functions; this module
+only serves files, starts the browser once, and compares what comes back (coefficients relative to L00, band-1
+angles, irradiance ratios, all on Rec. 709 luminance).
 """
 
 from __future__ import annotations
 
-import functools
 import http.server
+import os
 import json
 import shutil
 import subprocess
@@ -16,24 +18,33 @@ import threading
 from pathlib import Path
 
 import numpy as np
-import pytest
 
-from conftest import ROOT
+from .errors import LightprobeError
 
-ENGINES = ROOT / "engines"
+ENGINES = Path(os.environ.get("LIGHTPROBE_ENGINES", Path(__file__).resolve().parents[2] / "engines"))
 CHROMIUM = "/usr/bin/chromium"
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 
 
-def require_engines() -> None:
-    """Fail (never skip) with what to run when the engines are not installed."""
-    missing = [what for what, ok in (
+def missing_engines() -> list[str]:
+    """What is missing to run the engines here (empty when everything is installed)."""
+    try:
+        import playwright  # noqa: F401
+        has_playwright = True
+    except ImportError:
+        has_playwright = False
+    return [what for what, ok in (
         ("engines/node_modules (npm ci in engines/)", (ENGINES / "node_modules" / "three").is_dir()
          and (ENGINES / "node_modules" / "@babylonjs" / "core").is_dir()),
-        ("node", shutil.which("node") is not None),
-        (CHROMIUM, Path(CHROMIUM).exists())) if not ok]
+        ("node", shutil.which("node") is not None), (CHROMIUM, Path(CHROMIUM).exists()),
+        ("the playwright package", has_playwright)) if not ok]
+
+
+def require_engines() -> None:
+    """Raise a one-line error naming what to install when the engines are not there."""
+    missing = missing_engines()
     if missing:
-        pytest.fail(f"the engine tests need {', '.join(missing)}: run 'bash setup.sh --test'", pytrace=False)
+        raise LightprobeError(f"the engine checks need {', '.join(missing)}: run 'bash setup.sh'")
 
 
 class Server:
@@ -89,7 +100,8 @@ def babylon(jobs: dict) -> dict:
     """Run ../engines/babylon_sh.mjs in Node on ``jobs`` (see that file) and return its answer."""
     res = subprocess.run(["node", str(ENGINES / "babylon_sh.mjs")], input=json.dumps(jobs), capture_output=True,
                          text=True, cwd=ENGINES, timeout=300)
-    assert res.returncode == 0, res.stderr[-2000:]
+    if res.returncode != 0:
+        raise RuntimeError(f"Babylon.js in Node failed: {res.stderr[-2000:]}")
     return json.loads(res.stdout)
 
 
