@@ -143,9 +143,56 @@ def test_babylon_default_path_renders_our_polynomial_as_its_own(babylon_answers,
     assert errors[0] < max(0.03, spreads[0]) and errors[1] < max(0.03, spreads[1]), (errors, spreads)
 
 
+# ---- Babylon.js's shader in Chromium ----------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def babylon_page(browser):
+    return browser.page("babylon.html")
+
+
+def centre_luminance(rgba: list, size: int = 128) -> float:
+    """Linear luminance of the 9×9 pixels at the image centre (the sphere's point facing the camera)."""
+    from lightprobe.tonemap import srgb_decode
+
+    image = srgb_decode(np.array(rgba, np.float32).reshape(size, size, 4)[..., :3] / 255)
+    c = size // 2
+    return float((image[c - 4:c + 5, c - 4:c + 5] @ LUMINANCE).mean())
+
+
+@pytest.mark.parametrize("probe", PROBES)
+def test_babylon_shader_lights_the_sphere_as_with_its_own_panorama(babylon_page, browser, babylon_answers, probes,
+                                                                     probe):
+    """A white diffuse sphere under Babylon's default PBR shader, its environment loaded by Babylon from the
+    panorama file (HDRCubeTexture) or given our SphericalPolynomial; the camera looks at the point facing the
+    brightest direction, then the opposite one."""
+    _, files = probes
+    answer = babylon_answers
+    sun = np.array(answer[f"{probe}/512"]["brightest"])
+    ours_polynomial = json.loads(ours(files[probe], "babylon"))["polynomial"]
+    pre = {n: np.array(answer[f"{probe}/{n}"]["preScaledHarmonics"]) for n in (256, 512)}
+    errors, spreads = [], []
+    for eye in (sun, -sun):
+        expected = {n: babylon_shader_over_pi(pre[n], eye) @ LUMINANCE for n in pre}  # Node: the same CPU path
+        exposure = 0.4 / max(expected[512], 1e-9)  # the centre at about 0.4: nothing clips
+        url = f"{browser.server.url}/files/{probe}.hdr"
+        own = centre_luminance(babylon_page.evaluate("([u, n, e, x]) => window.lightprobe.panorama(u, n, e, x)",
+                                                     [url, 512, eye.tolist(), exposure]))
+        mine = centre_luminance(babylon_page.evaluate("([p, e, x]) => window.lightprobe.polynomial(p, e, x)",
+                                                      [ours_polynomial, eye.tolist(), exposure]))
+        errors.append(abs(mine - own) / own)
+        spreads.append(abs(expected[256] - expected[512]) / expected[512])
+    RESULTS[("Babylon.js 9.35 (Chromium, PBR shader)", probe)] = (float("nan"), float("nan"), float("nan"), *errors)
+    assert not browser.errors, browser.errors
+    # as in the Node check: Babylon's own nearest-pixel sampling of a small sun moves its result between cube sizes
+    assert errors[0] < max(0.03, spreads[0]) and errors[1] < max(0.03, spreads[1]), (errors, spreads)
+
+
 def test_print_the_engine_table():
     """Not a check: the table of figures (run with -s to see it), after the engine tests of this module."""
+    def shown(value, unit="%"):
+        return "—" if np.isnan(value) else (f"{100 * value:.2f} %" if unit == "%" else f"{value:.2f}°")
+
+    print("\n| engine | probe | coefficients | engine's spread | band-1 angle | E toward light | E away |")
     for (engine, probe), (diff, spread, angle, sun, anti) in sorted(RESULTS.items()):
-        print(f"| {engine} | {probe} | {100 * diff:.2f} % | {100 * spread:.2f} % | {angle:.2f}° | "
-              f"{100 * sun:.2f} % | {100 * anti:.2f} % |")
+        print(f"| {engine} | {probe} | {shown(diff)} | {shown(spread)} | {shown(angle, '°')} | {shown(sun)} | "
+              f"{shown(anti)} |")
     assert json.dumps({str(k): v for k, v in RESULTS.items()})

@@ -387,7 +387,7 @@ def test_f09_the_triangle_limit_holds_for_the_whole_scene(tmp_path):
     t0 = time.perf_counter()
     res = lightprobe("render", tmp_path / "many.yaml", "-o", tmp_path / "r.exr", "--size", "8x8")
     clean_failure(res, "triangles", "LIGHTPROBE_MAX_TRIANGLES")
-    assert time.perf_counter() - t0 < 20
+    assert time.perf_counter() - t0 < 10  # counted before any sphere is built (it built 976 of them first, 25 s)
 
 
 def peak_of(*argv, env=None) -> tuple[subprocess.CompletedProcess, float]:

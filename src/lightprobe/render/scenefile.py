@@ -179,6 +179,7 @@ class _TriangleBudget:
                               f"{self.limit} (set LIGHTPROBE_MAX_TRIANGLES to raise it)")
 
 
+SHAPE_TRIANGLES = {"sphere": SPHERE_TRIANGLES, "torus": TORUS_TRIANGLES}
 MESH_FIELDS = {"file", "shape", "albedo", "texture", "radius", "center", "major", "minor", "fit", "place_on_ground",
                "rotate", "scale", "translate"}
 
@@ -190,11 +191,9 @@ def _mesh(entry, i: int, base: Path, ground_height: float, budget: _TriangleBudg
     if texture is not None:
         material = Material(material.albedo, read_image(texture))
     shape = f.spec.get("shape")
-    if shape == "sphere":
-        budget.take(SPHERE_TRIANGLES, f"meshes[{i}]")
+    if shape == "sphere":  # its triangles were counted before any mesh was built (see scene_from_dict)
         return sphere(f.number("radius", 0.5, RANGES["radius"]), f.vector("center", (0, 0.5, 0)), material)
     if shape == "torus":
-        budget.take(TORUS_TRIANGLES, f"meshes[{i}]")
         return torus(f.number("major", 0.35, RANGES["major"]), f.number("minor", 0.12, RANGES["minor"]),
                      f.vector("center", (0, 0.12, 0)), material)
     if shape is not None:
@@ -246,6 +245,9 @@ def scene_from_dict(spec: dict, base: Path, environment: EnvMap | None = None, n
     if len(entries) > MAX_MESHES:
         raise BudgetError(f"refusing the scene: {len(entries)} meshes is over {MAX_MESHES}")
     budget, loaded = _TriangleBudget(), {}
+    shapes = [e.get("shape") for e in entries if isinstance(e, dict)]
+    budget.take(SHAPE_TRIANGLES.get("sphere") * shapes.count("sphere") + SHAPE_TRIANGLES.get("torus")
+                * shapes.count("torus"), f"its {len(shapes)} built-in shapes")  # before building any of them
     meshes = [_mesh(entry, i, base, ground_height, budget, loaded) for i, entry in enumerate(entries)]
     if ground is not None:
         meshes.append(ground_plane(ground.number("size", 20.0, RANGES["size"]), ground_height,
