@@ -281,14 +281,15 @@ def section_engines(rep: Report) -> str:
         lights, three = _three_figures(page, f"{server.url}/files/probe.hdr", export(sh, "threejs"))
         exposure = 0.55 / max(lights["peak"] / np.pi, 1e-9)
         pictures = []
-        for label in ("ours", "three.js"):
-            for back in (False, True):
+        for back in (False, True):
+            for label in ("ours", "three.js"):
                 url = page.evaluate("([c, s, e, b]) => window.lightprobe.renderSphere(c, s, e, b)",
                                     [lights[label].reshape(-1).tolist(), 256, exposure, back])
                 name = f"engine_three_{'ours' if label == 'ours' else 'own'}_{'back' if back else 'front'}"
                 write_bytes(rep.out / f"{name}.png", base64.b64decode(url.split(",", 1)[1]))
-                side = "three.js's −Z" if back else "three.js's +Z"
-                pictures.append(figure(name, f"three.js r{version}, lit by {'our export' if label == 'ours' else 'its own SH of the file'}, seen from {side}", 200))
+                side = "−Z" if back else "+Z"
+                lit = "our export" if label == "ours" else "its own SH"
+                pictures.append(figure(name, f"three.js r{version}: {lit}, from {side}", 200))
     finally:
         browser.close()
         server.close()
@@ -298,7 +299,7 @@ def section_engines(rep: Report) -> str:
                                                        ("Babylon.js 9.35 (Node, default SH path)", babylon))]
     return (title + "<p>Each engine reads the probe's panorama file the way its users load it and computes its own "
             "lighting; lightprobe's export of the same file is read by the engine too. Spheres: three.js draws a "
-            "white Lambertian sphere with a <code>LightProbe</code> — ours on the left, its own on the right. The "
+            "white Lambertian sphere with a <code>LightProbe</code> — ours, then its own, seen from three.js's +Z and −Z. The "
             "table gives the largest coefficient difference (relative to L00), the angle between the band-1 "
             "directions, and the irradiance the engine computes toward the light and away from it (the suite "
             "requires 3 %, 3° on five probes). Babylon samples panoramas at the nearest pixel, which under-counts "
