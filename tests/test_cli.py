@@ -135,7 +135,8 @@ def test_demo_writes_a_report_with_pictures(tmp_path, capsys):
     assert "∫L dω" in index
     assert "render_reference.png" in index and "Mitsuba 3." in index  # the ground truth is there, not excused
     assert (tmp_path / "report" / "render_reference.png").stat().st_size > 1000
-    for name in ("engine_three_ours_front", "engine_three_own_front"):  # spheres drawn by three.js itself
+    for name in ("engine_three_ours_front", "engine_three_own_front", "engine_babylon_ours_toward",
+                 "engine_babylon_own_toward"):  # spheres drawn by three.js and Babylon.js themselves
         assert f"{name}.png" in index and (tmp_path / "report" / f"{name}.png").stat().st_size > 1000
     assert "Babylon.js 9.35 (Node, default SH path)" in index
 

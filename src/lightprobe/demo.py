@@ -250,7 +250,8 @@ def _babylon_figures(panorama: Path, ours_json: str) -> dict:
     return {"coefficients": coefficient_difference(mine, engine),
             "angle": band1_angle(mine, engine, (3, 1, 2), (-1, -1, 1)),
             "toward": relative(shade(mine, sun), shade(engine, sun)),
-            "away": relative(shade(mine, -sun), shade(engine, -sun))}
+            "away": relative(shade(mine, -sun), shade(engine, -sun)),
+            "sun": sun, "peak": float(shade(engine, sun) @ LUMINANCE)}
 
 
 def section_engines(rep: Report) -> str:
@@ -258,6 +259,7 @@ def section_engines(rep: Report) -> str:
     LightProbe and by the LightProbe it computes itself from the same panorama file; Babylon.js in Node computes its
     own polynomial from that file and reads ours."""
     import base64
+    import json
 
     from .engines import Browser, Server, missing_engines
     from .envmap import read_envmap
@@ -290,16 +292,32 @@ def section_engines(rep: Report) -> str:
                 side = "−Z" if back else "+Z"
                 lit = "our export" if label == "ours" else "its own SH"
                 pictures.append(figure(name, f"three.js r{version}: {lit}, from {side}", 200))
+        babylon = _babylon_figures(panorama, export(sh, "babylon"))
+        page = browser.page("babylon.html")
+        polynomial = json.loads(export(sh, "babylon"))["polynomial"]
+        for away in (False, True):
+            eye = (-babylon["sun"] if away else babylon["sun"]).tolist()
+            for label in ("ours", "Babylon"):
+                call = ("([p, e, x]) => window.lightprobe.polynomial(p, e, x, true)", [polynomial, eye, 0.5 / babylon["peak"]]) \
+                    if label == "ours" else ("([u, e, x]) => window.lightprobe.panorama(u, 512, e, x, true)",
+                                             [f"{server.url}/files/probe.hdr", eye, 0.5 / babylon["peak"]])
+                url = page.evaluate(*call)
+                name = f"engine_babylon_{'ours' if label == 'ours' else 'own'}_{'away' if away else 'toward'}"
+                write_bytes(rep.out / f"{name}.png", base64.b64decode(url.split(",", 1)[1]))
+                lit = "our polynomial" if label == "ours" else "its own HDRCubeTexture"
+                pictures.append(figure(name, f"Babylon.js PBR: {lit}, {'away from' if away else 'toward'} the light",
+                                       200))
     finally:
         browser.close()
         server.close()
-    babylon = _babylon_figures(panorama, export(sh, "babylon"))
     rows = [[name, f"{100 * f['coefficients']:.2f} %", f"{f['angle']:.2f}°", f"{100 * f['toward']:.2f} %",
              f"{100 * f['away']:.2f} %"] for name, f in ((f"three.js r{version} (Chromium)", three),
                                                        ("Babylon.js 9.35 (Node, default SH path)", babylon))]
     return (title + "<p>Each engine reads the probe's panorama file the way its users load it and computes its own "
             "lighting; lightprobe's export of the same file is read by the engine too. Spheres: three.js draws a "
-            "white Lambertian sphere with a <code>LightProbe</code> — ours, then its own, seen from three.js's +Z and −Z. The "
+            "white Lambertian sphere with a <code>LightProbe</code> — ours, then its own, seen from three.js's +Z and −Z; "
+            "Babylon's default PBR shader draws a white diffuse sphere from our polynomial and from its own "
+            "<code>HDRCubeTexture</code> of the file, seen from the light and from the opposite side. The "
             "table gives the largest coefficient difference (relative to L00), the angle between the band-1 "
             "directions, and the irradiance the engine computes toward the light and away from it (the suite "
             "requires 3 %, 3° on five probes). Babylon samples panoramas at the nearest pixel, which under-counts "
