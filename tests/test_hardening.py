@@ -151,8 +151,39 @@ def _limited_fsize(limit: int):
     return set_limit
 
 
+@pytest.fixture
+def full_disk(tmp_path):
+    """A folder on a 64 kB tmpfs that is already 40 kB full (root can mount one, as CI runs); elsewhere a plain
+    folder, with the write limited by RLIMIT_FSIZE instead (``preexec``)."""
+    folder = tmp_path / "full"
+    folder.mkdir()
+    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(folder)],
+                             capture_output=True).returncode == 0
+    if mounted:
+        (folder / "filler").write_bytes(bytes(40_960))
+    yield folder, (None if mounted else _limited_fsize(20_000))
+    if mounted:
+        subprocess.run(["umount", str(folder)], check=True)
+
+
 @pytest.mark.parametrize("ext", [".png", ".jpg", ".exr", ".hdr"])
-def test_f21_f22_a_full_disk_never_replaces_a_good_file(tmp_path, ext):
+def test_f21_f22_on_a_full_disk_a_good_file_is_never_replaced(full_disk, ext):
+    """On a full tmpfs the output cannot be written: one line naming the target, exit 2, the old file intact, no
+    temporary file left. (Old main: a truncated PNG renamed over the good file and 'wrote …', exit 0; JPEG:
+    libjpeg's own 'Output file write error', exit 1, and its temporary file left.)"""
+    folder, preexec = full_disk
+    target = folder / f"out{ext}"
+    target.write_bytes(b"the user's good file")
+    res = lightprobe("convert", shared("polyhaven_1k/rooitou_park_1k.hdr"), target, "--to", "latlong", "--size", 256,
+                     preexec_fn=preexec)
+    clean_failure(res, "cannot write", str(target))
+    assert ".lp" not in res.stderr and ".tmp" not in res.stderr  # the target is named, not a temporary file
+    assert target.read_bytes() == b"the user's good file"
+    assert leftovers(folder) == []
+
+
+@pytest.mark.parametrize("ext", [".png", ".jpg", ".exr", ".hdr"])
+def test_f21_f22_a_file_size_limit_never_replaces_a_good_file(tmp_path, ext):
     """Under a 20 kB file-size limit the output cannot be written: one line, exit 2, the old file intact, no
     temporary file left (old main: a truncated PNG renamed over the good one and 'wrote …'; JPEG: libjpeg's own
     message, exit 1, the temporary file left)."""

@@ -284,6 +284,7 @@ def write_image(
             ok = out.write_image(pixels)
             err = _error_text(out)
             closed = out.close()
-        if not ok or not closed:
-            raise InputError(f"cannot write {path}: {err or _first_line(*said) or 'write failed'}")
+        if not ok or not closed:  # OpenImageIO's message names the temporary file: name the target instead
+            reason = (err or _first_line(*said) or "write failed").replace(str(tmp), str(path))
+            raise InputError(f"cannot write {path}: {reason}")
     return path
