@@ -44,3 +44,21 @@ def test_imports_flow_one_way():
                 target = node.module.split(".")[0]
                 if target in FLOORS:
                     assert FLOORS[target] <= FLOORS[name], f"{name} imports {target}, which is above it"
+
+
+def test_compiled_kernels_are_cached_in_the_user_cache_folder(tmp_path):
+    """numba's cache goes to $XDG_CACHE_HOME/lightprobe/numba, not beside the package (which may be read-only)."""
+    import os
+    import subprocess
+    import sys
+
+    script = ("import numpy as np, lightprobe as lp\n"
+              "from lightprobe.sh import project\n"
+              "env = lp.EnvMap(np.ones((4, 8, 3), np.float32), lp.layout('latlong'))\n"
+              "print(project(env, 2).coeffs[0, 0])\n")
+    env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path)}
+    env.pop("NUMBA_CACHE_DIR", None)
+    res = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=300)
+    assert res.returncode == 0, res.stderr
+    cached = list((tmp_path / "lightprobe" / "numba").rglob("*.nbi"))
+    assert any("latlong_row_sums_sh9" in p.name for p in cached), cached
