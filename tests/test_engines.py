@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from conftest import shared
-from lightprobe.engines import (LUMINANCE, Browser, Server, babylon, band1_angle, coefficient_difference,
-                                missing_engines, relative)
+from lightprobe.engines import (LUMINANCE, Browser, Server, babylon, babylon_irradiance_over_pi, band1_angle,
+                                coefficient_difference, missing_engines, relative)
 from lightprobe.envmap import EnvMap, read_envmap
 from lightprobe.export import export
 from lightprobe.io import write_image
@@ -115,13 +115,6 @@ def babylon_answers(probes):
     return babylon(jobs)
 
 
-def babylon_shader_over_pi(pre: np.ndarray, n: np.ndarray) -> np.ndarray:
-    """Babylon's computeEnvironmentIrradiance over preScaledHarmonics (the numbers Babylon made): E/π."""
-    x, y, z = n
-    basis = np.array([1, y, z, x, y * x, y * z, 3 * z * z - 1, z * x, x * x - y * y])
-    return basis @ pre
-
-
 @pytest.mark.parametrize("probe", PROBES)
 def test_babylon_default_path_renders_our_polynomial_as_its_own(babylon_answers, probe):
     answer = {k: {f: np.array(v) for f, v in babylon_answers[f"{probe}/{k}"].items()} for k in ("256", "512", "ours")}
@@ -133,8 +126,8 @@ def test_babylon_default_path_renders_our_polynomial_as_its_own(babylon_answers,
     sun = answer["512"]["brightest"]
     errors, spreads = [], []
     for n in (sun, -sun):
-        errors.append(relative(babylon_shader_over_pi(mine, n), babylon_shader_over_pi(engine, n)))
-        spreads.append(relative(babylon_shader_over_pi(coarse, n), babylon_shader_over_pi(engine, n)))
+        errors.append(relative(babylon_irradiance_over_pi(mine, n), babylon_irradiance_over_pi(engine, n)))
+        spreads.append(relative(babylon_irradiance_over_pi(coarse, n), babylon_irradiance_over_pi(engine, n)))
     RESULTS[("Babylon.js 9.35 (Node, default SH path)", probe)] = (diff, spread, angle, *errors)
     assert angle < 3 and diff < max(0.03, spread), (angle, diff, spread)
     # Babylon samples the panorama at the nearest pixel (CalcProjectionSpherical rounds), which under-counts a
@@ -171,7 +164,7 @@ def test_babylon_shader_lights_the_sphere_as_with_its_own_panorama(babylon_page,
     pre = {n: np.array(answer[f"{probe}/{n}"]["preScaledHarmonics"]) for n in (256, 512)}
     errors, spreads = [], []
     for eye in (sun, -sun):
-        expected = {n: babylon_shader_over_pi(pre[n], eye) @ LUMINANCE for n in pre}  # Node: the same CPU path
+        expected = {n: babylon_irradiance_over_pi(pre[n], eye) @ LUMINANCE for n in pre}  # Node: the same CPU path
         exposure = 0.4 / max(expected[512], 1e-9)  # the centre at about 0.4: nothing clips
         url = f"{browser.server.url}/files/{probe}.hdr"
         own = centre_luminance(babylon_page.evaluate("([u, n, e, x]) => window.lightprobe.panorama(u, n, e, x)",

@@ -486,18 +486,11 @@ def test_f20_f23_work_over_the_memory_budget_is_refused_before_it_starts(tmp_pat
     import tempfile
 
     mine = [p for p in Path(tempfile.gettempdir()).glob("lightprobe-mitsuba-*")]
-    assert not [p for p in mine if not _pid_alive(p)]
+    from lightprobe.files import process_alive
+    from lightprobe.render.reference import SCENE_FOLDER
 
-
-def _pid_alive(folder: Path) -> bool:
-    match = re.match(r"lightprobe-mitsuba-(\d+)-", folder.name)
-    if not match:
-        return True
-    try:
-        os.kill(int(match.group(1)), 0)
-    except ProcessLookupError:
-        return False
-    return True
+    stale = [p for p in mine if SCENE_FOLDER.match(p.name) and not process_alive(int(SCENE_FOLDER.match(p.name)[1]))]
+    assert not stale
 
 
 def test_f23_the_mitsuba_folder_is_gone_once_the_scene_is_loaded(monkeypatch):

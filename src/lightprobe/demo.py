@@ -237,21 +237,16 @@ def _three_figures(page, url: str, ours_json: str) -> tuple[dict, dict]:
 
 def _babylon_figures(panorama: Path, ours_json: str) -> dict:
     """Babylon.js's own polynomial of the panorama file against ours, both through its default shader path."""
-    from .engines import LUMINANCE, babylon, band1_angle, coefficient_difference, relative
+    from .engines import LUMINANCE, babylon, babylon_irradiance_over_pi, band1_angle, coefficient_difference, relative
 
     answer = babylon({"engine": {"panorama": str(panorama.resolve()), "size": 512}, "ours": {"export": ours_json}})
     engine, mine = (np.array(answer[k]["preScaledHarmonics"]) for k in ("engine", "ours"))
     sun = np.array(answer["engine"]["brightest"])
-
-    def shade(pre, n):  # Babylon's computeEnvironmentIrradiance over its preScaledHarmonics
-        x, y, z = n
-        return np.array([1, y, z, x, y * x, y * z, 3 * z * z - 1, z * x, x * x - y * y]) @ pre
-
     return {"coefficients": coefficient_difference(mine, engine),
             "angle": band1_angle(mine, engine, (3, 1, 2), (-1, -1, 1)),
-            "toward": relative(shade(mine, sun), shade(engine, sun)),
-            "away": relative(shade(mine, -sun), shade(engine, -sun)),
-            "sun": sun, "peak": float(shade(engine, sun) @ LUMINANCE)}
+            "toward": relative(babylon_irradiance_over_pi(mine, sun), babylon_irradiance_over_pi(engine, sun)),
+            "away": relative(babylon_irradiance_over_pi(mine, -sun), babylon_irradiance_over_pi(engine, -sun)),
+            "sun": sun, "peak": float(babylon_irradiance_over_pi(engine, sun) @ LUMINANCE)}
 
 
 def section_engines(rep: Report) -> str:

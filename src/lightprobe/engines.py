@@ -120,6 +120,14 @@ def band1_angle(ours: np.ndarray, engine: np.ndarray, axes: tuple[int, int, int]
     return float(np.degrees(np.arccos(np.clip(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)), -1, 1))))
 
 
+def babylon_irradiance_over_pi(pre_scaled: np.ndarray, n) -> np.ndarray:
+    """E/π at unit normal ``n`` (Babylon's frame) as Babylon's computeEnvironmentIrradiance evaluates its
+    ``preScaledHarmonics`` (9 × RGB, numbers Babylon made): the bare polynomials 1, y, z, x, yx, yz, 3z²−1, zx,
+    x²−y²."""
+    x, y, z = n
+    return np.array([1, y, z, x, y * x, y * z, 3 * z * z - 1, z * x, x * x - y * y]) @ pre_scaled
+
+
 def relative(a: np.ndarray, b: np.ndarray) -> float:
     """|a − b| / b on luminance."""
     return float(abs((a - b) @ LUMINANCE) / abs(b @ LUMINANCE))

@@ -53,7 +53,8 @@ def temp_path_for(path: Path) -> Path:
     return path.with_name(f".{path.name}.lp{os.getpid()}-{secrets.token_hex(4)}.tmp{path.suffix}")
 
 
-def _process_alive(pid: int) -> bool:
+def process_alive(pid: int) -> bool:
+    """True when process ``pid`` exists (ours or another user's)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
@@ -63,16 +64,17 @@ def _process_alive(pid: int) -> bool:
     return True
 
 
-def sweep_stale_temporaries(folder: Path) -> list[Path]:
-    """Remove temporary files (and report folders) of our naming in ``folder`` whose process no longer exists."""
+def sweep_stale_temporaries(folder: Path, naming: re.Pattern = _TEMP_NAME) -> list[Path]:
+    """Remove temporary files and folders in ``folder`` whose names match ``naming`` (group 1: the pid of the
+    process that made them; default: our temporary files and report folders) when that process no longer exists."""
     removed = []
     try:
         entries = list(os.scandir(folder))
     except OSError:
         return removed
     for entry in entries:
-        match = _TEMP_NAME.match(entry.name)
-        if match and int(match.group(1)) != os.getpid() and not _process_alive(int(match.group(1))):
+        match = naming.match(entry.name)
+        if match and int(match.group(1)) != os.getpid() and not process_alive(int(match.group(1))):
             with contextlib.suppress(OSError):
                 if entry.is_dir(follow_symlinks=False):
                     shutil.rmtree(entry.path)

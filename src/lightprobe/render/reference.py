@@ -19,6 +19,7 @@ nothing, slower).
 
 from __future__ import annotations
 
+import re
 import tempfile
 import time
 from pathlib import Path
@@ -147,19 +148,14 @@ def reference_memory(scene: Scene) -> int:
             + scene.triangle_count * BYTES_PER_TRIANGLE + scene.environment.data.size * 16)
 
 
+SCENE_FOLDER = re.compile(r"^lightprobe-mitsuba-(\d+)-")  # the pid of the run that made the folder
+
+
 def _sweep_stale_folders() -> None:
     """Remove scene folders of earlier runs that died before removing theirs (a crash inside Mitsuba, kill -9)."""
-    import os
-    import re
-    import shutil
+    from ..files import sweep_stale_temporaries
 
-    from ..files import _process_alive
-
-    root = Path(tempfile.gettempdir())
-    for entry in root.glob("lightprobe-mitsuba-*"):
-        match = re.match(r"lightprobe-mitsuba-(\d+)-", entry.name)
-        if match and int(match.group(1)) != os.getpid() and not _process_alive(int(match.group(1))):
-            shutil.rmtree(entry, ignore_errors=True)
+    sweep_stale_temporaries(Path(tempfile.gettempdir()), SCENE_FOLDER)
 
 
 SAMPLES_PER_PASS = 1 << 24  # Dr.Jit evaluates a pass as one wavefront: its memory grows with samples per pass
