@@ -117,3 +117,25 @@ def clamped_cosine_sums(normals, dirs_t, weights_t, out):  # pragma: no cover - 
         out[t, 0] = total0
         out[t, 1] = total1
         out[t, 2] = total2
+
+
+@njit(cache=True, parallel=True, fastmath=True)
+def ggx_lobe_sums(r, dirs_t, omega, values_t, alpha, below, out):  # pragma: no cover - compiled
+    """out[t] = (Σ_s k_t(s) v_s, Σ_s k_t(s)) with k_t(s) = D_α(h) (r_t·d_s)⁺ ω_s, h halfway between r_t and d_s,
+    summed over the s with r_t·d_s < ``below``: the GGX prefilter's direct sum (n = v = r), O(T·S).
+
+    ``dirs_t`` (3, S) and ``values_t`` (3, S) float32, ``omega`` (S,) float32 (structure of arrays); ``out`` (T, 4)
+    float64, the sums kept in float64. cos²θ_h = (1 + r·d)/2, D = α²/(π (cos²θ_h (α² − 1) + 1)²)."""
+    scale = alpha * alpha / np.pi
+    am1 = alpha * alpha - 1.0
+    for t in prange(r.shape[0]):
+        sums = np.zeros(4)
+        for s in range(dirs_t.shape[1]):
+            c = r[t, 0] * dirs_t[0, s] + r[t, 1] * dirs_t[1, s] + r[t, 2] * dirs_t[2, s]
+            if 0.0 < c < below:
+                q = (1.0 + c) * 0.5 * am1 + 1.0
+                w = scale / (q * q) * c * omega[s]
+                for k in range(3):
+                    sums[k] += w * values_t[k, s]
+                sums[3] += w
+        out[t, :] = sums
