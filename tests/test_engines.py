@@ -10,6 +10,7 @@ interior, and two synthetic single spots.
 from __future__ import annotations
 
 import json
+import warnings
 
 import numpy as np
 import pytest
@@ -18,6 +19,7 @@ from conftest import shared
 from lightprobe.engines import (LUMINANCE, Browser, Server, babylon, babylon_irradiance_over_pi, band1_angle,
                                 coefficient_difference, missing_engines, relative)
 from lightprobe.envmap import EnvMap, read_envmap
+from lightprobe.errors import LightprobeWarning
 from lightprobe.export import export
 from lightprobe.io import write_image
 from lightprobe.layouts import LATLONG
@@ -142,13 +144,20 @@ def babylon_page(browser):
     return browser.page("babylon.html")
 
 
-def centre_luminance(rgba: list, size: int = 128) -> float:
-    """Linear luminance of the 9×9 pixels at the image centre (the sphere's point facing the camera)."""
+def luminance_image(canvas: str, size: int = 128) -> np.ndarray:
+    """Linear luminance of a canvas the page returned (base64 RGBA bytes, sRGB-encoded)."""
+    import base64
+
     from lightprobe.tonemap import srgb_decode
 
-    image = srgb_decode(np.array(rgba, np.float32).reshape(size, size, 4)[..., :3] / 255)
+    rgba = np.frombuffer(base64.b64decode(canvas), np.uint8).reshape(size, size, 4)
+    return srgb_decode(rgba[..., :3].astype(np.float32) / 255) @ LUMINANCE
+
+
+def centre_luminance(canvas: str, size: int = 128) -> float:
+    """Linear luminance of the 9×9 pixels at the image centre (the sphere's point facing the camera)."""
     c = size // 2
-    return float((image[c - 4:c + 5, c - 4:c + 5] @ LUMINANCE).mean())
+    return float(luminance_image(canvas, size)[c - 4:c + 5, c - 4:c + 5].mean())
 
 
 @pytest.mark.parametrize("probe", PROBES)
@@ -179,6 +188,133 @@ def test_babylon_shader_lights_the_sphere_as_with_its_own_panorama(babylon_page,
     assert errors[0] < max(0.03, spreads[0]) and errors[1] < max(0.03, spreads[1]), (errors, spreads)
 
 
+# ---- the environment in Babylon's own containers: .env, and glTF through Babylon's loader -----------------------
+CONTAINER_SIZE = 64  # specular cube of the container files (the diffuse checks read only their SH)
+
+
+@pytest.fixture(scope="module")
+def containers(probes):
+    """Each probe as lightprobe's Babylon .env and glTF (.glb) files, beside the panoramas the browser serves."""
+    from lightprobe.containers import babylon_env, glb, gltf_ibl
+
+    folder, files = probes
+    for name, path in files.items():
+        env = read_envmap(path)
+        sh = project(env, 2)
+        with warnings.catch_warnings():  # the sunny probes' RGBD clipping warning: measured in test_containers
+            warnings.simplefilter("ignore", LightprobeWarning)
+            (folder / f"{name}.env").write_bytes(babylon_env(env, sh, CONTAINER_SIZE))
+            (folder / f"{name}.glb").write_bytes(glb(*gltf_ibl(env, sh, CONTAINER_SIZE)))
+    return folder
+
+
+@pytest.mark.parametrize("container", ["env", "glb"])
+@pytest.mark.parametrize("probe", PROBES)
+def test_babylon_lights_from_our_container_as_from_its_own_panorama(babylon_page, browser, babylon_answers,
+                                                                      containers, probe, container):
+    """The diffuse sphere under Babylon's default PBR shader, its environment our .env file (Babylon's CubeTexture)
+    or our .glb (Babylon's glTF loader, EXT_lights_image_based), against Babylon's HDRCubeTexture of the panorama."""
+    sun = np.array(babylon_answers[f"{probe}/512"]["brightest"])
+    pre = {n: np.array(babylon_answers[f"{probe}/{n}"]["preScaledHarmonics"]) for n in (256, 512)}
+    url = f"{browser.server.url}/files/{probe}"
+    source = "env" if container == "env" else "gltf"
+    errors, spreads = [], []
+    for eye in (sun, -sun):
+        expected = {n: babylon_irradiance_over_pi(pre[n], eye) @ LUMINANCE for n in pre}
+        exposure = 0.4 / max(expected[512], 1e-9)
+        own = centre_luminance(babylon_page.evaluate("([u, n, e, x]) => window.lightprobe.panorama(u, n, e, x)",
+                                                     [url + ".hdr", 512, eye.tolist(), exposure]))
+        mine = centre_luminance(babylon_page.evaluate(
+            "([s, a, e, x]) => window.lightprobe.sphere(s, a, e, x, null)",
+            [source, [f"{url}.{container}"], eye.tolist(), exposure]))
+        errors.append(abs(mine - own) / own)
+        spreads.append(abs(expected[256] - expected[512]) / expected[512])
+    what = ".env (CubeTexture)" if container == "env" else "glTF loader (EXT_lights_image_based)"
+    RESULTS[(f"Babylon.js 9.35 {what}", probe)] = (float("nan"), float("nan"), float("nan"), *errors)
+    assert not browser.errors, browser.errors
+    assert errors[0] < max(0.03, spreads[0]) and errors[1] < max(0.03, spreads[1]), (errors, spreads)
+
+
+VIEWS = [(1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1)]
+
+
+@pytest.mark.parametrize("probe", ["venice", "spot-a"])
+def test_babylon_shows_our_env_background_where_it_shows_its_own_panorama(babylon_page, browser, containers,
+                                                                          probes, probe, tmp_path):
+    """Babylon's skybox of our .env against its skybox of its own HDRCubeTexture of the panorama, looking along
+    each axis; the same .env made in the world frame (mirrored z, the mistake the frame fixes) must not pass."""
+    from lightprobe.containers import babylon_env
+    from lightprobe.frames import WORLD
+
+    _, files = probes
+    env = read_envmap(files[probe])
+    mirrored = containers / f"{probe}-mirrored.env"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LightprobeWarning)
+        mirrored.write_bytes(babylon_env(env, project(env, 2), CONTAINER_SIZE, frame=WORLD))
+    url = f"{browser.server.url}/files/{probe}"
+    exposure = 0.3 / float(np.percentile(env.data @ LUMINANCE, 90))
+
+    def skyboxes(source, args):
+        """One image per view, reduced to 16×16 blocks: the comparison is of where things are, not of detail
+        (Babylon's panorama → cube takes the nearest pixel, ours the footprint)."""
+        images = babylon_page.evaluate("([s, a, d, x]) => window.lightprobe.skyboxes(s, a, d, x)",
+                                       [source, args, VIEWS, exposure])
+        return [luminance_image(image).reshape(16, 8, 16, 8).mean(axis=(1, 3)) for image in images]
+
+    own = skyboxes("panorama", [url + ".hdr", 256])
+
+    def differences(images):
+        return [float(np.abs(image - o).mean() / o.mean()) for image, o in zip(images, own)]
+
+    ours, wrong = differences(skyboxes("env", [url + ".env"])), differences(skyboxes("env", [url + "-mirrored.env"]))
+    SKYBOX[probe] = (ours, wrong)
+    assert not browser.errors, browser.errors
+    assert max(ours) < 0.1, ours
+    assert max(wrong) > 3 * max(ours), (ours, wrong)
+
+
+@pytest.mark.parametrize("probe", ["interior", "spot-a", "spot-b"])
+def test_babylon_glossy_metal_from_our_mips_as_from_its_own_prefiltering(babylon_page, browser, containers, probe):
+    """A white metal sphere of roughness 0.25, 0.5 and 0.8 in Babylon's PBR shader: its mips from our .env and our
+    glTF against those Babylon's own GPU prefilter (HDRFiltering) makes from the panorama at the same size."""
+    from lightprobe.prefilter import prefilter_cube
+
+    url = f"{browser.server.url}/files/{probe}"
+    eye = [0.3, 0.45, 0.85]
+    # the brightest texel of the α = 0.25² mip sets the exposure: the highlight stays below white
+    peak = float(prefilter_cube(read_envmap(containers / f"{probe}.hdr"), 32, [0] + [0.0625] * 5).levels[1].max())
+    roughnesses = (0.25, 0.5, 0.8)
+
+    def spheres(source, args):
+        return [luminance_image(image) for image in babylon_page.evaluate(
+            "([s, a, e, x, r]) => window.lightprobe.spheres(s, a, e, x, r)",
+            [source, args, eye, 0.6 / peak, roughnesses])]
+
+    def differences(images, references):
+        return [float(np.abs(i - o)[o > 0].mean() / o[o > 0].mean()) for i, o in zip(images, references)]
+
+    own = spheres("prefiltered", [url + ".hdr", CONTAINER_SIZE])
+    # Babylon's own result moves between cube sizes (it takes the panorama's nearest pixel): that spread, per
+    # roughness, is the floor of what agreement can mean
+    spread = differences(spheres("prefiltered", [url + ".hdr", 2 * CONTAINER_SIZE]), own)
+    figures = {container: differences(spheres(source, [f"{url}.{container}"]), own)
+               for container, source in (("env", "env"), ("glb", "gltf"))}
+    GLOSSY[probe] = (roughnesses, figures, spread)
+    assert not browser.errors, browser.errors
+    # Measured (issue 8's note): .env 1.2-6.1 %, glTF 1.8-8.0 % against Babylon's own 64² prefilter, whose own
+    # 64² → 128² spread is 0.6-4.0 %. The glTF path is further off because Babylon's loader leaves that texture
+    # in gamma space, so its mips are blended before the 2.2 power. Mistakes measured the same way: linear RGBD in
+    # the glTF (the double gamma) 37-170 %; an .env whose mips hold the glTF loader's roughness per mip (scale 1
+    # for 0.8) 14-15 % on the spot probes (7 % on the interior, which this bound would not catch).
+    for container, errors in figures.items():
+        assert max(errors) < 0.1, (container, errors, spread)
+
+
+GLOSSY: dict = {}  # probe → (roughnesses, {container: mean relative difference per roughness}, Babylon's spread)
+SKYBOX: dict = {}  # probe → (ours, mirrored): difference per view
+
+
 def test_print_the_engine_table():
     """Not a check: the table of figures (run with -s to see it), after the engine tests of this module."""
     def shown(value, unit="%"):
@@ -188,4 +324,12 @@ def test_print_the_engine_table():
     for (engine, probe), (diff, spread, angle, sun, anti) in sorted(RESULTS.items()):
         print(f"| {engine} | {probe} | {shown(diff)} | {shown(spread)} | {shown(angle, '°')} | {shown(sun)} | "
               f"{shown(anti)} |")
+    print("\n| Babylon skybox | probe | our .env, worst view | the same .env in the world frame |")
+    for probe, (ours, wrong) in sorted(SKYBOX.items()):
+        print(f"| 16×16 blocks | {probe} | {shown(max(ours))} | {shown(max(wrong))} |")
+    print("\n| Babylon metal sphere | probe | roughness | our .env | our glTF | Babylon 64² vs 128² |")
+    for probe, (roughnesses, figures, spread) in sorted(GLOSSY.items()):
+        for i, r in enumerate(roughnesses):
+            print(f"| mean |Δ|/mean | {probe} | {r} | {shown(figures['env'][i])} | {shown(figures['glb'][i])} | "
+                  f"{shown(spread[i])} |")
     assert json.dumps({str(k): v for k, v in RESULTS.items()})

@@ -83,3 +83,33 @@ def test_hdr_header_sizes(tmp_path, w, h):
     path = tmp_path / "s.hdr"
     path.write_bytes(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y %d +X %d\n" % (h, w) + b"\x02\x02\x00\x10" * 8)
     _read_or_clean_error(path)
+
+
+@functools.lru_cache(maxsize=1)
+def _env_file() -> bytes:
+    from lightprobe.containers import babylon_env
+    from lightprobe.envmap import EnvMap
+    from lightprobe.layouts import LATLONG
+    from lightprobe.sh import project
+
+    env = EnvMap(np.ones((8, 16, 3), np.float32), LATLONG)
+    return babylon_env(env, project(env, 2), 2)
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(edits=st.lists(st.tuples(st.integers(0, 4095), st.integers(0, 255)), min_size=0, max_size=8),
+       cut=st.integers(0, 4096))
+def test_env_manifest_reader_returns_a_manifest_or_one_clear_error(edits, cut):
+    """Babylon .env bytes cut short and with bytes changed: a dict, or InputError — never another exception."""
+    from lightprobe.containers import read_env_manifest
+
+    data = bytearray(_env_file()[:cut] if cut < 4096 else _env_file())
+    for position, value in edits:
+        if position < len(data):
+            data[position] = value
+    try:
+        manifest = read_env_manifest(bytes(data))
+    except LightprobeError as e:
+        assert "\n" not in str(e)
+    else:
+        assert isinstance(manifest, dict) and manifest["binaryDataPosition"] <= len(data)

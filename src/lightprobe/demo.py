@@ -302,6 +302,7 @@ def section_engines(rep: Report) -> str:
                 lit = "our polynomial" if label == "ours" else "its own HDRCubeTexture"
                 pictures.append(figure(name, f"Babylon.js PBR: {lit}, {'away from' if away else 'toward'} the light",
                                        200))
+        containers, container_text = _babylon_containers(rep, page, server, folder, sh, babylon)
     finally:
         browser.close()
         server.close()
@@ -318,7 +319,69 @@ def section_engines(rep: Report) -> str:
             "requires 3 %, 3° on five probes). Babylon samples panoramas at the nearest pixel, which under-counts "
             "a small sun; three.js decodes RGBE mantissas /255, a +0.4 % of its own.</p>"
             '<div class="grid">' + "".join(pictures) + "</div>"
-            + table(["engine", "coefficients", "band-1 angle", "E toward the light", "E away"], rows))
+            + table(["engine", "coefficients", "band-1 angle", "E toward the light", "E away"], rows)
+            + container_text + '<div class="grid">' + "".join(containers) + "</div>")
+
+
+CONTAINER_SIZE = 128  # the report's .env and .glb: small enough to bake in a few seconds
+
+
+def _babylon_containers(rep: Report, page, server, folder: Path, sh, babylon: dict) -> tuple[list[str], str]:
+    """Our .env and .glb of the probe in Babylon: a white metal sphere (roughness 0.3) from our .env's mips beside
+    one from Babylon's own GPU prefilter of the panorama, and the diffuse sphere from our .glb through its glTF
+    loader beside the one from its own HDRCubeTexture."""
+    import base64
+    import io
+    import warnings
+
+    from PIL import Image
+
+    from .containers import babylon_env, glb, gltf_ibl
+    from .envmap import read_envmap
+    from .files import write_bytes
+    from .prefilter import prefilter_cube
+    from .tonemap import srgb_decode
+
+    env = read_envmap(folder / "probe.hdr")
+    with warnings.catch_warnings():  # the sun's RGBD clipping is said in the text below
+        warnings.simplefilter("ignore")
+        env_bytes = babylon_env(env, sh, CONTAINER_SIZE)
+        glb_bytes = glb(*gltf_ibl(env, sh, CONTAINER_SIZE))
+    exports = rep.out / "exports"
+    exports.mkdir(exist_ok=True)
+    for name, data in (("probe.env", env_bytes), ("probe.glb", glb_bytes)):
+        write_bytes(exports / name, data)
+        write_bytes(folder / name, data)
+    url = f"{server.url}/files/"
+    peak = float(prefilter_cube(env, 32, [0] + [0.09] * 5).levels[1].max())
+    eye = (0.6 * babylon["sun"] + np.array([0.0, 0.4, 0.0])).tolist()
+    shots, pictures, images = [
+        ("engine_babylon_env_metal", "env", [url + "probe.env"], 0.3, "our .env, metal roughness 0.3"),
+        ("engine_babylon_own_metal", "prefiltered", [url + "probe.hdr", CONTAINER_SIZE], 0.3,
+         "its own prefilter, metal roughness 0.3"),
+        ("engine_babylon_glb_diffuse", "gltf", [url + "probe.glb"], None, "our .glb through its glTF loader"),
+        ("engine_babylon_own_diffuse", "panorama", [url + "probe.hdr", 512], None, "its own HDRCubeTexture")], [], {}
+    for name, source, args, roughness, caption in shots:
+        exposure = 0.6 / peak if roughness is not None else 0.5 / babylon["peak"]
+        data_url = page.evaluate("([s, a, e, x, r]) => window.lightprobe.sphere(s, a, e, x, r, true)",
+                                 [source, args, eye, exposure, roughness])
+        png = base64.b64decode(data_url.split(",", 1)[1])
+        write_bytes(rep.out / f"{name}.png", png)
+        pictures.append(figure(name, f"Babylon.js PBR: {caption}", 200))
+        images[name] = srgb_decode(np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), np.float32) / 255).mean(-1)
+
+    def difference(a, b):
+        inside = images[b] > 0
+        return float(np.abs(images[a] - images[b])[inside].mean() / images[b][inside].mean())
+
+    text = (f"<p>The environment itself in Babylon's containers (<a href=\"exports/probe.env\">probe.env</a>, "
+            f"<a href=\"exports/probe.glb\">probe.glb</a>, {CONTAINER_SIZE}² GGX-prefiltered mips in RGBD beside the "
+            "SH): Babylon loads each the way its users do. Metal sphere from our mips against Babylon's own GPU "
+            f"prefilter of the panorama: mean |Δ| {100 * difference('engine_babylon_env_metal', 'engine_babylon_own_metal'):.1f} %"
+            " of the mean; diffuse sphere through its glTF loader against its own panorama: "
+            f"{100 * difference('engine_babylon_glb_diffuse', 'engine_babylon_own_diffuse'):.1f} %. RGBD stops at 255, "
+            "so the sharpest mips clip the sun (the blurrier mips and the SH keep it).</p>")
+    return pictures, text
 
 
 def _demo_scene(rep: Report):

@@ -1,10 +1,13 @@
-"""``lightprobe export``: nine SH coefficients in an engine's frame, sign convention and scaling."""
+"""``lightprobe export``: SH irradiance in an engine's frame, sign convention and scaling, or the whole environment
+in an engine's own container (Babylon ``.env``, glTF ``EXT_lights_image_based``)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from .common import add_probe, load, refuse, write_text
+from .common import Number, add_option, add_probe, load, refuse, write_text
+
+CONTAINERS = ("babylon-env",)
 
 
 def register(sub) -> None:
@@ -12,42 +15,88 @@ def register(sub) -> None:
     from ..frames import FRAMES
     from ..sh import WINDOWS
 
-    p = sub.add_parser("export", help="SH irradiance for engines (three.js, Filament, Unity, glTF, Babylon, GLSL)",
+    p = sub.add_parser("export", help="lighting for engines (three.js, Filament, Unity, glTF, Babylon, GLSL)",
                        description="Nine SH coefficients converted to an engine's frame, sign convention and "
-                                   "scaling (see the README's table).")
+                                   "scaling (see the README's table); with 'gltf' from a map, or 'babylon-env', the "
+                                   "whole environment: GGX-prefiltered specular mips beside the SH.")
     add_probe(p)
     p.add_argument("--sh", type=Path, help="start from coefficients in lightprobe's SH JSON (from 'sh --json' or "
                                            "'design --json') instead of projecting a map")
-    p.add_argument("--to", "-t", required=True, choices=TARGETS)
-    p.add_argument("--output", "-o", type=Path, required=True)
+    p.add_argument("--to", "-t", required=True, choices=TARGETS + CONTAINERS)
+    p.add_argument("--output", "-o", type=Path, required=True,
+                   help="gltf from a map: .glb (binary) or .gltf (images embedded); babylon-env: .env")
     p.add_argument("--frame", choices=list(FRAMES), help="override the target's own frame")
     p.add_argument("--gltf-scaling", choices=GLTF_SCALINGS, default="irradiance",
                    help="glTF irradianceCoefficients: irradiance E_lm as Babylon.js's loader reads them (default), or "
                         "pi*L_lm (files of lightprobe 0.1)")
+    add_option(p, "--specular-size", type=Number(int, 1, 512), default=256,
+               help="face size of the specular cube in gltf/babylon-env files, a power of two (default 256)")
     p.add_argument("--window", choices=WINDOWS, default="none", help="de-ringing window")
     p.set_defaults(run=run)
 
 
 def run(args) -> None:
-    from ..export import export
     from ..files import check_output
-    from ..sh import project
 
     inputs = [p for p in (args.file, args.sh) if p is not None]
-    check_output(args.output, inputs, text=True)
+    container = args.to in CONTAINERS or (args.to == "gltf" and args.sh is None)
+    check_output(args.output, inputs, text=not container)
     if args.sh is not None:
         if args.file is not None:
             refuse("give a map or --sh, not both")
-        from ..io import check_regular_file
-        from ..shfile import read_sh_json
-
-        check_regular_file(args.sh, "SH file")
-        sh = read_sh_json(args.sh.read_bytes()[: 8 << 20], str(args.sh))
-        if sh.quantity != "radiance" or sh.l_max < 2:
-            refuse(f"{args.sh}: exports need radiance coefficients up to band 2")
+        if args.to in CONTAINERS:
+            refuse(f"--to {args.to} holds the environment itself: give the map, not --sh")
+        sh = read_sh(args.sh)
+        env = None
     else:
-        sh = project(load(args.file, args.layout, working_bytes_per_pixel=64), 2)
-    text = export(sh.windowed(args.window), args.to, args.frame, args.gltf_scaling,
-                  csharp=args.output.suffix.lower() == ".cs")
+        env, sh = map_and_sh(args)
+    sh = sh.windowed(args.window)
+    if container:
+        write_container(args, env, sh, inputs)
+        return
+    from ..export import export
+
+    text = export(sh, args.to, args.frame, args.gltf_scaling, csharp=args.output.suffix.lower() == ".cs")
     write_text(args.output, text, inputs)
     print(f"wrote {args.output} ({args.to})")
+
+
+def read_sh(path: Path):
+    from ..io import check_regular_file
+    from ..shfile import read_sh_json
+
+    check_regular_file(path, "SH file")
+    sh = read_sh_json(path.read_bytes()[: 8 << 20], str(path))
+    if sh.quantity != "radiance" or sh.l_max < 2:
+        refuse(f"{path}: exports need radiance coefficients up to band 2")
+    return sh
+
+
+def map_and_sh(args):
+    from ..sh import project
+
+    extra = 0
+    if args.to in CONTAINERS or args.to == "gltf":
+        from ..containers import check_specular_size
+        from ..prefilter import prefilter_memory
+
+        extra = prefilter_memory(check_specular_size(args.specular_size))
+    env = load(args.file, args.layout, working_bytes_per_pixel=64, extra_bytes=extra)
+    return env, project(env, 2)
+
+
+def write_container(args, env, sh, inputs) -> None:
+    from ..containers import babylon_env, glb, gltf_embedded, gltf_ibl
+    from ..files import write_bytes
+    from ..frames import BABYLON, frame
+
+    f = frame(args.frame) if args.frame else BABYLON
+    if args.to == "babylon-env":
+        write_bytes(args.output, babylon_env(env, sh, args.specular_size, f), inputs)
+    else:
+        document, images = gltf_ibl(env, sh, args.specular_size, args.gltf_scaling, f)
+        if args.output.suffix.lower() == ".glb":
+            write_bytes(args.output, glb(document, images), inputs)
+        else:
+            write_text(args.output, gltf_embedded(document, images), inputs)
+    print(f"wrote {args.output} ({args.to}, {args.specular_size}² specular cube, frame {f.name})")

@@ -1,0 +1,206 @@
+"""The environment itself in engines' own containers, so the background and the lighting travel in one file.
+
+* Babylon.js ``.env`` (its ``EnvironmentTextureTools`` format, version 2): 8 magic bytes, a JSON manifest ended by
+  a NUL, then one PNG per cube face and mip. The manifest carries the irradiance as Babylon's
+  ``SphericalPolynomial`` (:func:`lightprobe.export.babylon_polynomial`, E/π in Babylon's frame) and the specular
+  mips' byte ranges with their ``lodGenerationScale``; the PNGs are RGBD-encoded GGX-prefiltered radiance
+  (:mod:`lightprobe.prefilter`, Babylon's roughness per mip).
+* glTF ``EXT_lights_image_based``: the same RGBD mips as ``specularImages`` beside ``irradianceCoefficients``
+  (:func:`lightprobe.export.gltf_coefficients`), as a ``.glb`` or a ``.gltf`` with embedded images. The extension
+  fixes neither the image encoding nor the roughness per mip; lightprobe follows its reference consumer, Babylon's
+  loader: RGBD PNGs, and a full chain (levels = log₂ size + 1), which that loader reads with
+  lodGenerationScale = (levels − 1)/log₂ size = 1, so mip i holds α = 2^i/size.
+
+Quantity in both: **radiance** in the map's units, RGBD-encoded — rgb = (L·D)^(1/2.2) and alpha D, D = ⌊255/max⌋/255
+clamped to [1/255, 1], as Babylon's ``toRGBD`` — so values above 255 are clamped (said by :func:`rgbd_clipped`). The
+cube faces are OpenGL-ordered (+X, −X, +Y, −Y, +Z, −Z) in Babylon's frame (x, y, −z) of world, the frame its
+HDRCubeTexture shows a panorama in (checked in Babylon's own renderer by the engine tests).
+"""
+
+from __future__ import annotations
+
+import base64
+import io
+import json
+import struct
+import warnings
+
+import numpy as np
+
+from .envmap import EnvMap
+from .errors import InputError, LightprobeWarning, UsageError
+from .export import babylon_polynomial, gltf_coefficients
+from .frames import BABYLON, Frame
+from .prefilter import PrefilteredCube, babylon_alphas, prefilter_cube
+from .sh import SHCoeffs
+
+ENV_MAGIC = bytes([0x86, 0x16, 0x87, 0x96, 0xF6, 0xD6, 0x96, 0x36])  # Babylon's .env signature
+ENV_VERSION = 2
+ENV_LOD_GENERATION_SCALE = 0.8  # Babylon's own HDRFiltering and .env files
+RGBD_MAX = 255.0  # Babylon's rgbdMaxRange: the largest radiance an RGBD texel holds
+GAMMA = 2.2  # Babylon's toGammaSpace / toLinearSpace approximation, used by its RGBD encode and decode
+POLYNOMIAL_KEYS = ("x", "y", "z", "xx", "yy", "zz", "yz", "zx", "xy")
+
+
+# ---- RGBD ---------------------------------------------------------------------------------------------------------
+def rgbd_encode(radiance: np.ndarray) -> np.ndarray:
+    """Linear RGB radiance (..., 3) → RGBD bytes (..., 4), exactly Babylon's ``toRGBD`` then 8-bit rounding."""
+    c = np.maximum(np.nan_to_num(np.asarray(radiance, np.float64), nan=0.0, posinf=RGBD_MAX), 0.0)
+    peak = np.maximum(c.max(axis=-1), 1e-7)
+    d = np.clip(np.floor(np.maximum(RGBD_MAX / peak, 1.0)) / 255.0, 0.0, 1.0)
+    rgb = np.clip(c * d[..., None], 0.0, 1.0) ** (1 / GAMMA)
+    return np.rint(np.concatenate([rgb, d[..., None]], axis=-1) * 255).astype(np.uint8)
+
+
+def rgbd_decode(rgbd: np.ndarray) -> np.ndarray:
+    """RGBD bytes (..., 4) → linear radiance (..., 3), as Babylon's ``fromRGBD``."""
+    x = np.asarray(rgbd, np.float64) / 255.0
+    return (x[..., :3] ** GAMMA) / np.maximum(x[..., 3:], 1 / 255)
+
+
+def rgbd_clipped(cube: PrefilteredCube, level: int = 0) -> float:
+    """Share of a mip's power (RGB summed over texels; cube texels differ in solid angle by at most 5.2×, so this
+    is the order of the ∫L dω share) lost to the RGBD clamp at 255."""
+    values = cube.levels[level].astype(np.float64)
+    return float(np.maximum(values - RGBD_MAX, 0).sum() / max(values.sum(), 1e-300))
+
+
+def warn_if_clipped(cube: PrefilteredCube) -> None:
+    shares = [rgbd_clipped(cube, i) for i in range(len(cube.levels))]
+    if shares[0] > 1e-3:
+        kept = next((i for i, share in enumerate(shares) if share == 0), len(shares))
+        warnings.warn(LightprobeWarning(
+            f"RGBD holds radiance up to {RGBD_MAX:g}: {100 * shares[0]:.1f} % of the mirror mip's power is clipped"
+            + (f", {100 * shares[1]:.1f} % of mip 1's" if len(shares) > 1 and shares[1] > 0 else "")
+            + f"; mips {kept} and up and the SH lighting keep all of it"), stacklevel=3)
+
+
+def png_bytes(rgba: np.ndarray) -> bytes:
+    from PIL import Image
+
+    buffer = io.BytesIO()
+    Image.fromarray(np.ascontiguousarray(rgba), "RGBA").save(buffer, format="PNG", compress_level=6)
+    return buffer.getvalue()
+
+
+def face_pngs(cube: PrefilteredCube, gamma_space: bool = False) -> list[list[bytes]]:
+    """RGBD PNGs of every mip (outer) and face (inner, +X −X +Y −Y +Z −Z), each face's rows bottom to top: Babylon
+    uploads them with invertY, so the PNG's first row becomes the face's last (checked against its own skybox).
+
+    ``gamma_space``: encode L^(1/2.2) instead of L, for a reader that marks the decoded texture as gamma space and
+    so raises it to 2.2 once more (Babylon's glTF loader: its RawCubeTexture keeps the default gammaSpace = true)."""
+    def encoded(face):
+        return rgbd_encode(face ** (1 / GAMMA) if gamma_space else face)
+
+    return [[png_bytes(encoded(np.maximum(level[f][::-1], 0))) for f in range(6)] for level in cube.levels]
+
+
+# ---- Babylon .env ------------------------------------------------------------------------------------------------
+def babylon_env(env: EnvMap, sh: SHCoeffs, size: int = 256, frame: Frame = BABYLON) -> bytes:
+    """A Babylon.js ``.env`` file of ``env`` (radiance): GGX mips of a ``size`` cube at Babylon's roughness per mip
+    (lodGenerationScale 0.8) and the irradiance polynomial of ``sh`` (radiance L_lm, l ≥ 2), both in ``frame``."""
+    cube = prefilter_cube(env, size, babylon_alphas(size, ENV_LOD_GENERATION_SCALE), frame)
+    warn_if_clipped(cube)
+    return env_file(cube, babylon_polynomial(sh, frame))
+
+
+def env_file(cube: PrefilteredCube, polynomial: dict[str, np.ndarray]) -> bytes:
+    """Pack a prefiltered chain and a Babylon polynomial as a ``.env`` (version 2, PNG images)."""
+    pngs = [png for level in face_pngs(cube) for png in level]
+    positions = np.concatenate([[0], np.cumsum([len(p) for p in pngs])])
+    manifest = {
+        "version": ENV_VERSION, "width": cube.size, "imageType": "image/png",
+        "irradiance": {k: [float(v) for v in polynomial[k]] for k in POLYNOMIAL_KEYS},
+        "specular": {"mipmaps": [{"length": len(p), "position": int(pos)} for p, pos in zip(pngs, positions)],
+                     "lodGenerationScale": ENV_LOD_GENERATION_SCALE},
+        "generator": _generator(),
+    }
+    header = json.dumps(manifest, allow_nan=False, separators=(",", ":")).encode("ascii")
+    return ENV_MAGIC + header + b"\0" + b"".join(pngs)
+
+
+def read_env_manifest(data: bytes) -> dict:
+    """The JSON manifest of a ``.env`` file, with ``binaryDataPosition`` (where its images start) added; anything
+    else raises :class:`~lightprobe.errors.InputError` in one line."""
+    if data[:8] != ENV_MAGIC:
+        raise InputError("not a Babylon .env file (wrong signature)")
+    end = data.find(b"\0", 8, 8 + (16 << 20))
+    if end < 0:
+        raise InputError("Babylon .env file: manifest not terminated within 16 MiB")
+    try:
+        manifest = json.loads(data[8:end].decode("ascii"))
+    except (UnicodeDecodeError, ValueError, RecursionError) as e:
+        raise InputError(f"Babylon .env file: manifest is not JSON ({type(e).__name__})") from None
+    if not isinstance(manifest, dict):
+        raise InputError("Babylon .env file: manifest is not a JSON object")
+    manifest["binaryDataPosition"] = end + 1
+    return manifest
+
+
+# ---- glTF EXT_lights_image_based ---------------------------------------------------------------------------------
+def gltf_ibl(env: EnvMap, sh: SHCoeffs, size: int = 256, scaling: str = "irradiance",
+             frame: Frame = BABYLON) -> tuple[dict, list[bytes]]:
+    """A glTF document (dict) with one ``EXT_lights_image_based`` light used by its scene, and its PNG images in
+    order (``images[i]`` of the document): ``specularImages`` are a full GGX chain of a ``size`` cube of ``env``
+    (α = 2^i/size, as Babylon's loader reads a full chain), ``irradianceCoefficients`` from ``sh`` (see
+    :func:`lightprobe.export.gltf_coefficients` for ``scaling``), both in ``frame``."""
+    cube = prefilter_cube(env, size, babylon_alphas(size, 1.0), frame)
+    warn_if_clipped(cube)
+    pngs = face_pngs(cube, gamma_space=True)
+    indices = [[6 * i + f for f in range(6)] for i in range(len(pngs))]
+    light = {
+        "name": "lightprobe", "intensity": 1.0, "rotation": [0.0, 0.0, 0.0, 1.0],
+        "irradianceCoefficients": [[float(v) for v in row] for row in gltf_coefficients(sh, scaling, frame)],
+        "specularImageSize": size, "specularImages": indices,
+        "extras": {"lightprobe": {"scaling": scaling, "basis": "Condon-Shortley phase", "frame": frame.name,
+                                  "specular": "GGX-prefiltered radiance, RGBD PNG, mip i at alpha = 2^i/size"}},
+    }
+    document = {
+        "asset": {"version": "2.0", "generator": _generator()},
+        "extensionsUsed": ["EXT_lights_image_based"],
+        "extensions": {"EXT_lights_image_based": {"lights": [light]}},
+        "scene": 0,
+        "scenes": [{"name": "lightprobe environment", "extensions": {"EXT_lights_image_based": {"light": 0}}}],
+        "images": [{"mimeType": "image/png"} for _ in range(6 * len(pngs))],
+    }
+    return document, [png for level in pngs for png in level]
+
+
+def gltf_embedded(document: dict, images: list[bytes]) -> str:
+    """A ``.gltf`` text with every image as a base64 data URI."""
+    doc = json.loads(json.dumps(document))
+    for image, png in zip(doc["images"], images):
+        image["uri"] = "data:image/png;base64," + base64.b64encode(png).decode("ascii")
+    return json.dumps(doc, allow_nan=False, indent=1)
+
+
+def glb(document: dict, images: list[bytes]) -> bytes:
+    """A binary glTF (``.glb``): the JSON chunk and one BIN chunk holding every image through a buffer view."""
+    doc = json.loads(json.dumps(document))
+    blob, views = bytearray(), []
+    for image, png in zip(doc["images"], images):
+        image["bufferView"] = len(views)
+        views.append({"buffer": 0, "byteOffset": len(blob), "byteLength": len(png)})
+        blob += png + b"\0" * (-len(png) % 4)  # 4-byte alignment of every view
+    doc["bufferViews"] = views
+    doc["buffers"] = [{"byteLength": len(blob)}]
+    text = json.dumps(doc, allow_nan=False, separators=(",", ":")).encode("utf-8")
+    text += b" " * (-len(text) % 4)
+    chunks = struct.pack("<II", len(text), 0x4E4F534A) + text + struct.pack("<II", len(blob), 0x004E4942) + blob
+    return struct.pack("<III", 0x46546C67, 2, 12 + len(chunks)) + chunks
+
+
+def check_specular_size(size: int) -> int:
+    """A specular cube size: a power of two from 1 to 1024."""
+    if not (1 <= size <= 1024) or size & (size - 1):
+        raise UsageError(f"--specular-size must be a power of two, got {size}")
+    return size
+
+
+def _generator() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return f"lightprobe {version('lightprobe')}"
+    except PackageNotFoundError:  # pragma: no cover - running from a source tree
+        return "lightprobe"
