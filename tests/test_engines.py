@@ -313,6 +313,72 @@ def test_babylon_glossy_metal_from_our_mips_as_from_its_own_prefiltering(babylon
 
 GLOSSY: dict = {}  # probe → (roughnesses, {container: mean relative difference per roughness}, Babylon's spread)
 SKYBOX: dict = {}  # probe → (ours, mirrored): difference per view
+FILAMENT: dict = {}  # probe → (worst axis error of ours, worst error of the z-mirrored numbers), of the mean E/π
+
+
+# ---- Filament's web build in Chromium ---------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def filament_page(browser, probes):
+    """Filament 1.53 (WebAssembly) with a white rough dielectric sphere loaded through its gltfio."""
+    from lightprobe.engines import white_sphere_glb
+
+    folder, _ = probes
+    white_sphere_glb(folder / "sphere.glb")
+    page = browser.page("filament.html")
+    assert page.evaluate("u => window.lightprobe.setup(u)", f"{browser.server.url}/files/sphere.glb") == "ok"
+    return page
+
+
+def filament_centre(page, coefficients: np.ndarray, eye) -> float:
+    """Luminance of the 10×10 centre pixels of Filament's sphere (linear: no post-processing), centred exactly on
+    the image centre, where the normal is the eye direction (half a pixel off is 0.65° there, 2 % of E/π near a
+    bright spot)."""
+    import base64
+
+    c = 128 // 2
+    canvas = page.evaluate("([s, e]) => window.lightprobe.render(s, e)", [coefficients.reshape(-1).tolist(), list(eye)])
+    rgba = np.frombuffer(base64.b64decode(canvas), np.uint8).reshape(128, 128, 4)
+    return float((rgba[c - 5:c + 5, c - 5:c + 5, :3].astype(np.float64) / 255 @ LUMINANCE).mean())
+
+
+@pytest.mark.parametrize("probe", PROBES)
+def test_filament_shades_our_sh_as_the_coefficients_mean(filament_page, browser, probes, probe):
+    """Filament's own shader evaluates our sh.txt numbers on a sphere: at the point facing the brightest panorama
+    pixel and the opposite one it must show E/π of our radiance SH (evaluated by lightprobe.sh, not by the export
+    code) within 3 %, and facing ±x, ±y, ±z within 3 % of the mean E/π (some of those are near zero). Each render
+    is scaled so that point sits at 0.5 of the 8-bit range, and a white furnace (E/π = 0.5 everywhere)
+    calibrates Filament's constant factors at normal incidence. Filament's web build cannot compute SH from a
+    panorama itself (that is its native cmgen), so the reference is what the coefficients mean; the same numbers
+    stated in a z-mirrored frame must fail."""
+    from lightprobe.export import filament_coefficients
+    from lightprobe.frames import UNITY
+
+    _, files = probes
+    env = read_envmap(files[probe])
+    sh = project(env, 2)
+    image = env.data
+    row, col = np.unravel_index(np.argmax(image @ LUMINANCE), image.shape[:2])
+    sun = env.directions()[row, col]
+    furnace = np.zeros((9, 3))
+    furnace[0] = 0.5
+    eyes = [sun, -sun] + [np.eye(3)[i] * s for i in range(3) for s in (1, -1)]
+    scale = {tuple(e): furnace_value for e, furnace_value in
+             ((tuple(e), filament_centre(filament_page, furnace, e) / 0.5) for e in eyes)}
+    mean = float(sh.coeffs[0] @ LUMINANCE * np.sqrt(4 * np.pi) / (4 * np.pi))  # E/π of band 0: the mean radiance
+    errors = {}
+    for label, coefficients in (("ours", filament_coefficients(sh)), ("mirrored", filament_coefficients(sh, UNITY))):
+        errors[label] = []
+        for i, eye in enumerate(eyes):
+            expected = float(sh.to_irradiance().evaluate(eye[None])[0] @ LUMINANCE / np.pi)
+            k = 0.5 / expected
+            shown = filament_centre(filament_page, k * coefficients, eye) / scale[tuple(eye)] / k
+            errors[label].append(abs(shown - expected) / (abs(expected) if i < 2 else mean))
+    RESULTS[("Filament 1.53 (Chromium, gltfio shader)", probe)] = (float("nan"), float("nan"), float("nan"),
+                                                                   errors["ours"][0], errors["ours"][1])
+    FILAMENT[probe] = (max(errors["ours"][2:]), max(errors["mirrored"]))
+    assert not browser.errors, browser.errors
+    assert max(errors["ours"]) < 0.03, errors["ours"]
+    assert max(errors["mirrored"]) > 0.1, errors["mirrored"]
 
 
 def test_print_the_engine_table():
@@ -327,6 +393,9 @@ def test_print_the_engine_table():
     print("\n| Babylon skybox | probe | our .env, worst view | the same .env in the world frame |")
     for probe, (ours, wrong) in sorted(SKYBOX.items()):
         print(f"| 16×16 blocks | {probe} | {shown(max(ours))} | {shown(max(wrong))} |")
+    print("\n| Filament | probe | ours, worst of ±x ±y ±z (of mean E/π) | z-mirrored numbers, worst |")
+    for probe, (ours, wrong) in sorted(FILAMENT.items()):
+        print(f"| 1.53 | {probe} | {shown(ours)} | {shown(wrong)} |")
     print("\n| Babylon metal sphere | probe | roughness | our .env | our glTF | Babylon 64² vs 128² |")
     for probe, (roughnesses, figures, spread) in sorted(GLOSSY.items()):
         for i, r in enumerate(roughnesses):

@@ -32,7 +32,7 @@ from .irradiance import brute_irradiance, error_report, irradiance_map, referenc
 from .layouts import LAYOUTS
 from .progress import track
 from .sh import SHCoeffs, name, project
-from .tonemap import auto_exposure, heatmap
+from .tonemap import auto_exposure, heatmap, srgb_encode, to_uint8
 
 
 @dataclass
@@ -303,6 +303,7 @@ def section_engines(rep: Report) -> str:
                 pictures.append(figure(name, f"Babylon.js PBR: {lit}, {'away from' if away else 'toward'} the light",
                                        200))
         containers, container_text = _babylon_containers(rep, page, server, folder, sh, babylon)
+        pictures += _filament_spheres(rep, browser, server, folder, sh, babylon["sun"] * np.array([1, 1, -1]))
     finally:
         browser.close()
         server.close()
@@ -317,13 +318,48 @@ def section_engines(rep: Report) -> str:
             "table gives the largest coefficient difference (relative to L00), the angle between the band-1 "
             "directions, and the irradiance the engine computes toward the light and away from it (the suite "
             "requires 3 %, 3° on five probes). Babylon samples panoramas at the nearest pixel, which under-counts "
-            "a small sun; three.js decodes RGBE mantissas /255, a +0.4 % of its own.</p>"
+            "a small sun; three.js decodes RGBE mantissas /255, a +0.4 % of its own. Filament's web build "
+            "(WebAssembly, gltfio's shader) draws the sphere from our <code>sh.txt</code>; it has no panorama → SH "
+            "path of its own (that is the native cmgen), so the suite holds it to what the numbers mean: E/π "
+            "toward and away from the light within 3 %.</p>"
             '<div class="grid">' + "".join(pictures) + "</div>"
             + table(["engine", "coefficients", "band-1 angle", "E toward the light", "E away"], rows)
             + container_text + '<div class="grid">' + "".join(containers) + "</div>")
 
 
 CONTAINER_SIZE = 128  # the report's .env and .glb: small enough to bake in a few seconds
+
+
+def _filament_spheres(rep: Report, browser, server, folder: Path, sh, sun: np.ndarray) -> list[str]:
+    """Filament's web build drawing a white rough sphere lit by our sh.txt, from the light and from the opposite
+    side (Filament's web build has no panorama → SH path of its own: that is its native cmgen)."""
+    import base64
+    import io
+
+    from PIL import Image
+
+    from .engines import white_sphere_glb
+    from .export import filament_coefficients
+    from .files import write_bytes
+
+    white_sphere_glb(folder / "sphere.glb")
+    page = browser.page("filament.html")
+    page.evaluate("u => window.lightprobe.setup(u)", f"{server.url}/files/sphere.glb")
+    coefficients = filament_coefficients(sh)
+    peak = float(sh.to_irradiance().evaluate(sun[None])[0].max() / np.pi)
+    pictures = []
+    for away in (False, True):
+        eye = (-sun if away else sun).tolist()
+        canvas = page.evaluate("([s, e]) => window.lightprobe.render(s, e)",
+                               [(0.8 / peak * coefficients).reshape(-1).tolist(), eye])
+        rgba = np.frombuffer(base64.b64decode(canvas), np.uint8).reshape(128, 128, 4)[::-1]
+        linear = rgba[..., :3].astype(np.float32) / 255  # Filament's output without post-processing is linear
+        name = f"engine_filament_ours_{'away' if away else 'toward'}"
+        buffer = io.BytesIO()
+        Image.fromarray(to_uint8(srgb_encode(linear))).save(buffer, format="PNG")
+        write_bytes(rep.out / f"{name}.png", buffer.getvalue())
+        pictures.append(figure(name, f"Filament 1.53: our sh.txt, {'away from' if away else 'toward'} the light", 200))
+    return pictures
 
 
 def _babylon_containers(rep: Report, page, server, folder: Path, sh, babylon: dict) -> tuple[list[str], str]:

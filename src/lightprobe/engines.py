@@ -24,6 +24,7 @@ from .errors import LightprobeError
 ENGINES = Path(os.environ.get("LIGHTPROBE_ENGINES", Path(__file__).resolve().parents[2] / "engines"))
 CHROMIUM = "/usr/bin/chromium"
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+PACKAGES = ("three", "@babylonjs/core", "@babylonjs/loaders", "filament")  # pinned in engines/package.json
 
 
 def missing_engines() -> list[str]:
@@ -34,8 +35,8 @@ def missing_engines() -> list[str]:
     except ImportError:
         has_playwright = False
     return [what for what, ok in (
-        ("engines/node_modules (npm ci in engines/)", (ENGINES / "node_modules" / "three").is_dir()
-         and (ENGINES / "node_modules" / "@babylonjs" / "core").is_dir()),
+        ("engines/node_modules (npm ci in engines/)",
+         all((ENGINES / "node_modules" / package).is_dir() for package in PACKAGES)),
         ("node", shutil.which("node") is not None), (CHROMIUM, Path(CHROMIUM).exists()),
         ("the playwright package", has_playwright)) if not ok]
 
@@ -94,6 +95,18 @@ class Browser:
     def close(self):
         self.browser.close()
         self.playwright.stop()
+
+
+def white_sphere_glb(path: Path) -> Path:
+    """A unit sphere (icosphere, 20k triangles, smooth normals) with a white rough dielectric glTF material, for
+    engines that draw only glTF assets (Filament's gltfio)."""
+    import trimesh
+
+    sphere = trimesh.creation.icosphere(subdivisions=5, radius=1.0)
+    sphere.visual = trimesh.visual.TextureVisuals(material=trimesh.visual.material.PBRMaterial(
+        baseColorFactor=[255, 255, 255, 255], metallicFactor=0.0, roughnessFactor=1.0))
+    sphere.export(path)
+    return Path(path)
 
 
 def babylon(jobs: dict) -> dict:
