@@ -313,6 +313,7 @@ def test_babylon_glossy_metal_from_our_mips_as_from_its_own_prefiltering(babylon
 
 GLOSSY: dict = {}  # probe → (roughnesses, {container: mean relative difference per roughness}, Babylon's spread)
 SKYBOX: dict = {}  # probe → (ours, mirrored): difference per view
+FILAMENT_SKY: dict = {}  # probe → {"ours"|"x-mirrored": (correlation per view, brightness ratio per view)}
 FILAMENT: dict = {}  # probe → (worst axis error of ours, worst error of the z-mirrored numbers), of the mean E/π
 
 
@@ -381,6 +382,69 @@ def test_filament_shades_our_sh_as_the_coefficients_mean(filament_page, browser,
     assert max(errors["mirrored"]) > 0.1, errors["mirrored"]
 
 
+def pinhole_luminance(env: EnvMap, direction, size: int = 128, fov: float = 30.0) -> np.ndarray:
+    """What a camera at the centre looking along ``direction`` sees of ``env`` (luminance, rows bottom to top as
+    WebGL reads them back): up is +Y, or +Z when looking straight up or down, as the page's lookAt."""
+    d = np.asarray(direction, float)
+    up = np.array([0.0, 0.0, 1.0]) if abs(d[1]) > 0.9 else np.array([0.0, 1.0, 0.0])
+    right = np.cross(d, up)
+    right /= np.linalg.norm(right)
+    xs = ((np.arange(size) + 0.5) / (size / 2) - 1) * np.tan(np.radians(fov / 2))
+    x, y = np.meshgrid(xs, xs)
+    rays = d + x[..., None] * right + y[..., None] * np.cross(right, d)
+    rays /= np.linalg.norm(rays, axis=-1, keepdims=True)
+    return env.lookup(rays.reshape(-1, 3)).reshape(size, size, 3) @ LUMINANCE
+
+
+@pytest.mark.parametrize("probe", ["venice", "interior"])
+def test_filament_shows_our_cube_map_where_our_lighting_comes_from(filament_page, browser, probes, probe):
+    """lightprobe's cube layout handed to Filament's setImageCube as it is (its Skybox, seen from the centre along
+    each axis) shows the environment in the directions our SH lights from (Filament's frame is the world frame):
+    block means correlate at 0.95 or more with a pinhole view of that cube looked up in world directions by
+    lightprobe, and keep its brightness within 3 %
+    (8-bit, so each view is exposed for its own median range and what clips is clipped in the prediction too);
+    the same cube mirrored in x does not."""
+    import base64
+
+    from lightprobe.envmap import resample
+    from lightprobe.layouts import CUBE
+
+    _, files = probes
+    env = read_envmap(files[probe])
+    handed = EnvMap(resample(env, CUBE, 64).data, CUBE)  # the prediction looks up the very cube Filament gets
+    pinholes = [pinhole_luminance(handed, view) for view in VIEWS]
+    # each view exposed for its own 75th percentile at 0.4 of white, what clips clipped in the prediction too
+    gains = [0.4 / float(np.percentile(p, 75)) for p in pinholes]
+
+    def views(rotation):
+        cube = resample(env, CUBE, 64, rotation=rotation).data
+        rgba = np.concatenate([cube, np.ones(cube.shape[:-1] + (1,), np.float32)], axis=-1).astype(np.float32)
+        filament_page.evaluate("([f, n]) => window.lightprobe.setSkybox(f, n)",
+                               [base64.b64encode(rgba.tobytes()).decode(), 64])
+        shown = []
+        for view, gain in zip(VIEWS, gains):
+            canvas = filament_page.evaluate("([d, g]) => window.lightprobe.skyView(d, g)", [list(view), gain])
+            rgba = np.frombuffer(base64.b64decode(canvas), np.uint8).reshape(128, 128, 4)
+            shown.append(rgba[..., :3].astype(np.float64) / 255 @ LUMINANCE / gain)
+        filament_page.evaluate("() => window.lightprobe.setSkybox(null, 0)")
+        return shown
+
+    def blocks(image):
+        return image.reshape(16, 8, 16, 8).mean(axis=(1, 3)).ravel()
+
+    expected = [blocks(np.minimum(p, 1 / gain)) for p, gain in zip(pinholes, gains)]
+    figures = {}
+    for label, rotation in (("ours", None), ("x-mirrored", np.diag([-1.0, 1.0, 1.0]))):
+        shown = [blocks(image) for image in views(rotation)]
+        figures[label] = ([float(np.corrcoef(a, b)[0, 1]) for a, b in zip(shown, expected)],
+                          [float(a.mean() / b.mean()) for a, b in zip(shown, expected)])
+    FILAMENT_SKY[probe] = figures
+    assert not browser.errors, browser.errors
+    correlation, brightness = figures["ours"]
+    assert min(correlation) > 0.95 and max(abs(b - 1) for b in brightness) < 0.03, figures["ours"]
+    assert min(figures["x-mirrored"][0]) < 0.9, figures["x-mirrored"]
+
+
 def test_print_the_engine_table():
     """Not a check: the table of figures (run with -s to see it), after the engine tests of this module."""
     def shown(value, unit="%"):
@@ -396,6 +460,10 @@ def test_print_the_engine_table():
     print("\n| Filament | probe | ours, worst of ±x ±y ±z (of mean E/π) | z-mirrored numbers, worst |")
     for probe, (ours, wrong) in sorted(FILAMENT.items()):
         print(f"| 1.53 | {probe} | {shown(ours)} | {shown(wrong)} |")
+    print("\n| Filament skybox | probe | ours: worst correlation, worst brightness | x-mirrored: worst correlation |")
+    for probe, figures in sorted(FILAMENT_SKY.items()):
+        (c, b), (cw, _) = figures["ours"], figures["x-mirrored"]
+        print(f"| 1.53 | {probe} | {min(c):.3f}, {100 * max(abs(x - 1) for x in b):.1f} % | {min(cw):.3f} |")
     print("\n| Babylon metal sphere | probe | roughness | our .env | our glTF | Babylon 64² vs 128² |")
     for probe, (roughnesses, figures, spread) in sorted(GLOSSY.items()):
         for i, r in enumerate(roughnesses):
