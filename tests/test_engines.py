@@ -108,34 +108,45 @@ def test_threejs_lights_from_where_its_background_shows_the_light(three, browser
 # ---- Babylon.js in Node -----------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def babylon_answers(probes):
+    """Babylon's own SH of each panorama with 256² and 512² cube faces, and our export read by Babylon; where its
+    own irradiance toward the light moves by over 3 % between those sizes (it takes the panorama's nearest pixel,
+    which misses or over-counts a small sun), also with 2048² faces — more texels than the 1k panorama has pixels,
+    where it has converged (1024² → 2048² moves Rooitou Park by 0.6 %) — under ``converged``."""
     _, files = probes
     jobs = {}
     for name, path in files.items():
         jobs[f"{name}/256"] = {"panorama": str(path), "size": 256}
         jobs[f"{name}/512"] = {"panorama": str(path), "size": 512}
         jobs[f"{name}/ours"] = {"export": ours(path, "babylon")}
-    return babylon(jobs)
+    answers = babylon(jobs)
+    unsettled = {}
+    for name, path in files.items():
+        pre = {n: np.array(answers[f"{name}/{n}"]["preScaledHarmonics"]) for n in (256, 512)}
+        sun = np.array(answers[f"{name}/512"]["brightest"])
+        if relative(babylon_irradiance_over_pi(pre[256], sun), babylon_irradiance_over_pi(pre[512], sun)) > 0.03:
+            unsettled[f"{name}/converged"] = {"panorama": str(path), "size": 2048}
+    answers.update(babylon(unsettled) if unsettled else {})
+    for name in files:
+        answers.setdefault(f"{name}/converged", answers[f"{name}/512"])
+    return answers
 
 
 @pytest.mark.parametrize("probe", PROBES)
 def test_babylon_default_path_renders_our_polynomial_as_its_own(babylon_answers, probe):
-    answer = {k: {f: np.array(v) for f, v in babylon_answers[f"{probe}/{k}"].items()} for k in ("256", "512", "ours")}
-    engine, mine = answer["512"]["preScaledHarmonics"], answer["ours"]["preScaledHarmonics"]
-    spread = coefficient_difference(answer["256"]["preScaledHarmonics"], engine)
+    """Against Babylon's converged SH of the panorama (see babylon_answers): band 1 within 3°, coefficients within
+    3 % of L00 or Babylon's own spread between 256² and 512² faces, irradiance toward the brightest background
+    direction and away from it within 3 %."""
+    answer = {k: {f: np.array(v) for f, v in babylon_answers[f"{probe}/{k}"].items()}
+              for k in ("256", "512", "converged", "ours")}
+    engine, mine = answer["converged"]["preScaledHarmonics"], answer["ours"]["preScaledHarmonics"]
+    spread = coefficient_difference(answer["256"]["preScaledHarmonics"], answer["512"]["preScaledHarmonics"])
     diff = coefficient_difference(mine, engine)
     angle = band1_angle(mine, engine, axes=(3, 1, 2), signs=(-1, -1, 1))  # Babylon's pre-scaled x, y carry −
-    coarse = answer["256"]["preScaledHarmonics"]
     sun = answer["512"]["brightest"]
-    errors, spreads = [], []
-    for n in (sun, -sun):
-        errors.append(relative(babylon_irradiance_over_pi(mine, n), babylon_irradiance_over_pi(engine, n)))
-        spreads.append(relative(babylon_irradiance_over_pi(coarse, n), babylon_irradiance_over_pi(engine, n)))
+    errors = [relative(babylon_irradiance_over_pi(mine, n), babylon_irradiance_over_pi(engine, n)) for n in (sun, -sun)]
     RESULTS[("Babylon.js 9.35 (Node, default SH path)", probe)] = (diff, spread, angle, *errors)
     assert angle < 3 and diff < max(0.03, spread), (angle, diff, spread)
-    # Babylon samples the panorama at the nearest pixel (CalcProjectionSpherical rounds), which under-counts a
-    # sub-degree sun by 5-17 % depending on the cube size; where its own result moves that much between two cube
-    # sizes, the irradiance is held to that spread instead of 3 % (said in the closing note of issue 8).
-    assert errors[0] < max(0.03, spreads[0]) and errors[1] < max(0.03, spreads[1]), (errors, spreads)
+    assert errors[0] < 0.03 and errors[1] < 0.03, errors
 
 
 # ---- Babylon.js's shader in Chromium ----------------------------------------------------------------------------
@@ -164,28 +175,37 @@ def centre_luminance(canvas: str, size: int = 128) -> float:
 def test_babylon_shader_lights_the_sphere_as_with_its_own_panorama(babylon_page, browser, babylon_answers, probes,
                                                                      probe):
     """A white diffuse sphere under Babylon's default PBR shader, its environment loaded by Babylon from the
-    panorama file (HDRCubeTexture) or given our SphericalPolynomial; the camera looks at the point facing the
-    brightest direction, then the opposite one."""
+    panorama file (HDRCubeTexture, 512² faces) or given our SphericalPolynomial; the camera looks at the point
+    facing the brightest direction, then the opposite one. See shader_errors for what is held to 3 %."""
     _, files = probes
-    answer = babylon_answers
-    sun = np.array(answer[f"{probe}/512"]["brightest"])
     ours_polynomial = json.loads(ours(files[probe], "babylon"))["polynomial"]
-    pre = {n: np.array(answer[f"{probe}/{n}"]["preScaledHarmonics"]) for n in (256, 512)}
-    errors, spreads = [], []
-    for eye in (sun, -sun):
-        expected = {n: babylon_irradiance_over_pi(pre[n], eye) @ LUMINANCE for n in pre}  # Node: the same CPU path
-        exposure = 0.4 / max(expected[512], 1e-9)  # the centre at about 0.4: nothing clips
-        url = f"{browser.server.url}/files/{probe}.hdr"
-        own = centre_luminance(babylon_page.evaluate("([u, n, e, x]) => window.lightprobe.panorama(u, n, e, x)",
-                                                     [url, 512, eye.tolist(), exposure]))
-        mine = centre_luminance(babylon_page.evaluate("([p, e, x]) => window.lightprobe.polynomial(p, e, x)",
-                                                      [ours_polynomial, eye.tolist(), exposure]))
-        errors.append(abs(mine - own) / own)
-        spreads.append(abs(expected[256] - expected[512]) / expected[512])
+    errors = shader_errors(babylon_page, browser, babylon_answers, probe, "polynomial", [ours_polynomial])
     RESULTS[("Babylon.js 9.35 (Chromium, PBR shader)", probe)] = (float("nan"), float("nan"), float("nan"), *errors)
     assert not browser.errors, browser.errors
-    # as in the Node check: Babylon's own nearest-pixel sampling of a small sun moves its result between cube sizes
-    assert errors[0] < max(0.03, spreads[0]) and errors[1] < max(0.03, spreads[1]), (errors, spreads)
+    assert max(errors) < 0.03, errors
+
+
+def shader_errors(page, browser, answers, probe: str, source: str, args: list) -> list[float]:
+    """Babylon's shader lighting the sphere from ``source`` (ours) and from its own 512² HDRCubeTexture of the
+    panorama, toward the light and away: how far ours is, as rendered, from Babylon's converged irradiance.
+
+    Babylon's 512² cube takes the panorama's nearest pixel and misses part of a small sun (11 % toward Rooitou
+    Park's), so its own render is not the reference; the ratio of the two renders is, times the ratio Babylon's
+    CPU path gives between its 512² and converged SH (babylon_answers): that checks the shader (it must render
+    the two in the ratio of their numbers) and lands on the converged value."""
+    sun = np.array(answers[f"{probe}/512"]["brightest"])
+    pre = {n: np.array(answers[f"{probe}/{n}"]["preScaledHarmonics"]) for n in ("512", "converged")}
+    url = f"{browser.server.url}/files/{probe}.hdr"
+    errors = []
+    for eye in (sun, -sun):
+        expected = {n: babylon_irradiance_over_pi(pre[n], eye) @ LUMINANCE for n in pre}  # Node: the same CPU path
+        exposure = 0.4 / max(expected["512"], 1e-9)  # the centre at about 0.4: nothing clips
+        own = centre_luminance(page.evaluate("([u, n, e, x]) => window.lightprobe.panorama(u, n, e, x)",
+                                             [url, 512, eye.tolist(), exposure]))
+        mine = centre_luminance(page.evaluate("([s, a, e, x]) => window.lightprobe.sphere(s, a, e, x, null)",
+                                              [source, args, eye.tolist(), exposure]))
+        errors.append(abs(mine / own * expected["512"] / expected["converged"] - 1))
+    return errors
 
 
 # ---- the environment in Babylon's own containers: .env, and glTF through Babylon's loader -----------------------
@@ -213,26 +233,14 @@ def containers(probes):
 def test_babylon_lights_from_our_container_as_from_its_own_panorama(babylon_page, browser, babylon_answers,
                                                                       containers, probe, container):
     """The diffuse sphere under Babylon's default PBR shader, its environment our .env file (Babylon's CubeTexture)
-    or our .glb (Babylon's glTF loader, EXT_lights_image_based), against Babylon's HDRCubeTexture of the panorama."""
-    sun = np.array(babylon_answers[f"{probe}/512"]["brightest"])
-    pre = {n: np.array(babylon_answers[f"{probe}/{n}"]["preScaledHarmonics"]) for n in (256, 512)}
-    url = f"{browser.server.url}/files/{probe}"
+    or our .glb (Babylon's glTF loader, EXT_lights_image_based), against Babylon's own (see shader_errors)."""
     source = "env" if container == "env" else "gltf"
-    errors, spreads = [], []
-    for eye in (sun, -sun):
-        expected = {n: babylon_irradiance_over_pi(pre[n], eye) @ LUMINANCE for n in pre}
-        exposure = 0.4 / max(expected[512], 1e-9)
-        own = centre_luminance(babylon_page.evaluate("([u, n, e, x]) => window.lightprobe.panorama(u, n, e, x)",
-                                                     [url + ".hdr", 512, eye.tolist(), exposure]))
-        mine = centre_luminance(babylon_page.evaluate(
-            "([s, a, e, x]) => window.lightprobe.sphere(s, a, e, x, null)",
-            [source, [f"{url}.{container}"], eye.tolist(), exposure]))
-        errors.append(abs(mine - own) / own)
-        spreads.append(abs(expected[256] - expected[512]) / expected[512])
+    errors = shader_errors(babylon_page, browser, babylon_answers, probe, source,
+                           [f"{browser.server.url}/files/{probe}.{container}"])
     what = ".env (CubeTexture)" if container == "env" else "glTF loader (EXT_lights_image_based)"
     RESULTS[(f"Babylon.js 9.35 {what}", probe)] = (float("nan"), float("nan"), float("nan"), *errors)
     assert not browser.errors, browser.errors
-    assert errors[0] < max(0.03, spreads[0]) and errors[1] < max(0.03, spreads[1]), (errors, spreads)
+    assert max(errors) < 0.03, errors
 
 
 VIEWS = [(1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1)]
