@@ -165,3 +165,21 @@ def test_resample_refuses_absurd_sizes():
 
     with pytest.raises(BudgetError, match="limit"):
         resample(spot_map("latlong", size=8), layout("latlong"), 10**6)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_bad_pixel_counts_match_their_definition(seed):
+    """The compiled one-pass count against the definition written out in numpy: pixels with any NaN, any ±inf,
+    any negative finite channel (a pixel may count in several), on arrays sprinkled with every kind, across the
+    kernel's 65536-pixel blocks."""
+    from lightprobe.envmap import bad_pixel_counts
+
+    rng = np.random.default_rng(seed)
+    px = rng.normal(1.0, 1.0, size=(70000 + seed * 3001, 3)).astype(np.float32)
+    for value in (np.nan, np.inf, -np.inf, -0.0):
+        index = rng.integers(0, px.size, size=rng.integers(0, 300))
+        px.reshape(-1)[index] = value
+    nan = np.isnan(px).any(axis=1).sum()
+    inf = np.isinf(px).any(axis=1).sum()
+    negative = ((px < 0) & np.isfinite(px)).any(axis=1).sum()
+    assert bad_pixel_counts(px.reshape(-1, 1, 3)) == {"nan": nan, "inf": inf, "negative": negative}

@@ -193,15 +193,18 @@ def read_image(path: str | os.PathLike, working_bytes_per_pixel: int = 0) -> np.
         header = _header(path, spec)
         check_memory(header.read_bytes() + header.pixels * working_bytes_per_pixel,
                      f"{path} ({header.width}×{header.height} pixels)")
+        channels = _rgb_channels(spec)
+        # R, G, B first and in order (nearly every file): read just those, already the array we return
+        direct = channels == [0, 1, 2]
         with captured_stderr() as said:
-            pixels = inp.read_image(0, 0, 0, spec.nchannels, "float")
+            pixels = inp.read_image(0, 0, 0, 3 if direct else spec.nchannels, "float")
             trouble = _error_text(inp) or _error_text()
         if pixels is None or trouble:  # some readers report damage yet hand back (partly zero) pixels: refuse them
             raise InputError(f"cannot read {path}: {trouble or _first_line(*said) or 'the pixel data is unreadable'}")
     finally:
         inp.close()
-    pixels = np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, spec.nchannels)
-    rgb = np.ascontiguousarray(pixels[..., _rgb_channels(spec)])
+    pixels = np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, 3 if direct else spec.nchannels)
+    rgb = pixels if direct else np.ascontiguousarray(pixels[..., channels])
     return srgb_decode(rgb) if _is_display_encoded(spec) else rgb
 
 
