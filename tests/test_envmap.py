@@ -169,9 +169,9 @@ def test_resample_refuses_absurd_sizes():
 
 @pytest.mark.parametrize("seed", range(5))
 def test_bad_pixel_counts_match_their_definition(seed):
-    """The compiled one-pass count against the definition written out in numpy: pixels with any NaN, any ±inf,
-    any negative finite channel (a pixel may count in several), on arrays sprinkled with every kind, across the
-    kernel's 65536-pixel blocks."""
+    """The counts (a min/max fast path, then a full count) against the definition written out: pixels with any
+    NaN, any ±inf, any negative finite channel (a pixel may count in several), on arrays sprinkled with every
+    kind, and none on a clean array (where −0.0 is not negative)."""
     from lightprobe.envmap import bad_pixel_counts
 
     rng = np.random.default_rng(seed)
@@ -183,3 +183,6 @@ def test_bad_pixel_counts_match_their_definition(seed):
     inf = np.isinf(px).any(axis=1).sum()
     negative = ((px < 0) & np.isfinite(px)).any(axis=1).sum()
     assert bad_pixel_counts(px.reshape(-1, 1, 3)) == {"nan": nan, "inf": inf, "negative": negative}
+    clean = np.abs(rng.normal(size=(100, 3))).astype(np.float32)
+    clean[0, 0] = -0.0
+    assert bad_pixel_counts(clean) == {"nan": 0, "inf": 0, "negative": 0}

@@ -5,11 +5,13 @@ from __future__ import annotations
 import ast
 import re
 
+import numpy as np
+
 from conftest import ROOT
 
 # Each module's floor; a module may import only from its own floor or below.
 FLOORS = {
-    "errors": 0, "progress": 0, "kernels": 0, "tonemap": 0, "frames": 0, "files": 0, "limits": 0, "io": 1,
+    "errors": 0, "progress": 0, "kernels": 0, "jit": 0, "tonemap": 0, "frames": 0, "files": 0, "limits": 0, "io": 1,
     "layouts": 1, "data": 0, "envmap": 2, "sh": 3, "irradiance": 4, "shfile": 4, "prefilter": 3, "export": 5, "design": 5, "containers": 6, "render": 8,
     "engines": 9, "demo": 9, "cli": 10, "__init__": 10,
 }
@@ -62,3 +64,29 @@ def test_compiled_kernels_are_cached_in_the_user_cache_folder(tmp_path):
     assert res.returncode == 0, res.stderr
     cached = list((tmp_path / "lightprobe" / "numba").rglob("*.nbi"))
     assert any("latlong_row_sums_sh9" in p.name for p in cached), cached
+
+
+def test_import_and_help_stay_light():
+    """`import lightprobe` loads neither numba nor OpenImageIO (PEP 562: names load on first use), and neither does
+    `lightprobe --help`; the README's names resolve; a kernel compiles on first call with numba's prange."""
+    import subprocess
+    import sys
+
+    script = ("import sys, contextlib, io\n"
+              "import lightprobe as lp\n"
+              "print('numba' in sys.modules, 'OpenImageIO' in sys.modules)\n"
+              "from lightprobe.cli import main\n"
+              "with contextlib.redirect_stdout(io.StringIO()):\n"
+              "    try:\n"
+              "        main(['--help'])\n"
+              "    except SystemExit:\n"
+              "        pass\n"
+              "print('numba' in sys.modules)\n"
+              "names = [lp.read_envmap, lp.EnvMap, lp.project, lp.SHCoeffs, lp.export, lp.irradiance_map, lp.layout]\n"
+              "import numpy as np\n"
+              "env = lp.EnvMap(np.ones((8, 16, 3), np.float32), lp.layout('latlong'))\n"
+              "print(round(float(lp.project(env, 2).coeffs[0, 0]), 6))\n"
+              "import numba, lightprobe.sh as sh\n"
+              "print(sh.prange is numba.prange)\n")
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["False", "False", "False", f"{round(float(np.sqrt(4 * np.pi)), 6)}", "True"], out

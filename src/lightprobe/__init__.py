@@ -1,7 +1,8 @@
 """lightprobe: HDR environment maps (light probes) → lighting for real-time renderers, checked against ground truth.
 
 Layers (nothing imports upward): ``io``, ``layouts``, ``frames``, ``tonemap`` at the bottom; ``envmap`` on them;
-``demo`` and the thin ``cli`` on top.
+``sh``, ``irradiance``, ``export``, ``prefilter``, ``containers``, ``render`` above; ``demo`` and the thin ``cli``
+on top. The names of ``__all__`` load on first use.
 """
 
 import os as _os
@@ -11,13 +12,34 @@ import os as _os
 _os.environ.setdefault("NUMBA_CACHE_DIR", _os.path.join(
     _os.environ.get("XDG_CACHE_HOME") or _os.path.join(_os.path.expanduser("~"), ".cache"), "lightprobe", "numba"))
 
-from .envmap import EnvMap, read_envmap, resample  # noqa: E402 - after the cache setting
-from .errors import InputError, LayoutError, LightprobeError, LightprobeWarning  # noqa: E402
-from .frames import RH2001, WORLD, rotation_from_ypr  # noqa: E402
-from .layouts import LAYOUTS, detect_layout, layout  # noqa: E402
+from .errors import InputError, LayoutError, LightprobeError, LightprobeWarning  # noqa: E402 - after the setting
 
-__all__ = [
-    "EnvMap", "read_envmap", "resample", "LightprobeError", "InputError", "LayoutError", "LightprobeWarning",
-    "WORLD", "RH2001", "rotation_from_ypr", "LAYOUTS", "layout", "detect_layout",
-]
+# Everything below loads on first use (PEP 562), so `import lightprobe` stays light: no numba, no OpenImageIO, no
+# trimesh until a function that needs them runs. Name → module it lives in.
+_LAZY = {
+    "EnvMap": "envmap", "read_envmap": "envmap", "resample": "envmap",
+    "WORLD": "frames", "RH2001": "frames", "rotation_from_ypr": "frames", "frame": "frames",
+    "LAYOUTS": "layouts", "layout": "layouts", "detect_layout": "layouts",
+    "SHCoeffs": "sh", "project": "sh",
+    "export": "export", "irradiance_map": "irradiance", "brute_irradiance": "irradiance",
+    "error_report": "irradiance", "prefilter_cube": "prefilter", "babylon_env": "containers",
+    "read_image": "io", "write_image": "io",
+}
+
+__all__ = ["LightprobeError", "InputError", "LayoutError", "LightprobeWarning", *_LAZY]
 __version__ = "0.1.0"
+
+
+def __getattr__(name: str):
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'lightprobe' has no attribute {name!r}")
+    from importlib import import_module
+
+    value = getattr(import_module(f".{module}", __name__), name)
+    globals()[name] = value  # later lookups skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))

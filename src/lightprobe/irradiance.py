@@ -13,7 +13,6 @@ import numpy as np
 
 from .errors import UsageError
 from .envmap import EnvMap
-from .kernels import clamped_cosine_sums
 from .layouts import Layout, layout as layout_named
 from .progress import track
 from .sh import SHCoeffs, _sample_directions, project
@@ -34,6 +33,8 @@ def brute_irradiance(env: EnvMap, normals: np.ndarray, chunk: int = 4096) -> np.
 
     A compiled kernel sums all pixels with light for each normal (float32 products, float64 totals: ~1e-7
     relative); normals go in chunks so long runs show progress."""
+    from .kernels import clamped_cosine_sums  # numba loads with the first kernel, not with the package
+
     normals = np.asarray(normals, dtype=np.float64)
     n = np.ascontiguousarray(normals.reshape(-1, 3))
     dirs_t, weights_t = _light_samples(env)

@@ -140,30 +140,3 @@ def ggx_lobe_sums(r, dirs_t, omega, values_t, alpha, below, out):  # pragma: no 
                 sums[3] += w
         out[t, :] = sums
 
-
-@njit(cache=True, parallel=True)
-def bad_pixel_scan(px):  # pragma: no cover - compiled
-    """(pixels with a NaN, with a ±inf, with a negative finite channel) of ``px`` (N, 3): one fused pass over the
-    data instead of a float64 temporary per test (reading a map is otherwise dominated by this check). Counted per
-    block of 65536 pixels, then summed (numba's prange reductions do not take these nested updates)."""
-    n = px.shape[0]
-    blocks = (n + 65535) // 65536
-    counts = np.zeros((blocks, 3), np.int64)
-    for k in prange(blocks):
-        for i in range(k * 65536, min(n, (k + 1) * 65536)):
-            has_nan = False
-            has_inf = False
-            has_neg = False
-            for c in range(3):
-                v = px[i, c]
-                if v != v:
-                    has_nan = True
-                elif v == np.inf or v == -np.inf:
-                    has_inf = True
-                elif v < 0:
-                    has_neg = True
-            counts[k, 0] += has_nan
-            counts[k, 1] += has_inf
-            counts[k, 2] += has_neg
-    total = counts.sum(axis=0)
-    return total[0], total[1], total[2]

@@ -22,7 +22,6 @@ from functools import lru_cache
 import numpy as np
 
 from .errors import LayoutError
-from .kernels import gather
 
 Grid = tuple[int, ...]
 PAD = 2  # border texels of padded images: enough for a cubic B-spline's 4×4 taps
@@ -120,6 +119,8 @@ class Layout(ABC):
     def sampler(self, data: np.ndarray, kernel: str = "bilinear"):
         """A function ``d (..., 3) → values (..., C)``: lookup of ``data`` (``grid + (C,)``) at world directions,
         seam- and pole-correct. ``kernel``: ``bilinear``, or ``bspline`` (cubic B-spline, for resampling)."""
+        from .kernels import gather  # numba is imported when a lookup is first built, not with the package
+
         grid = data.shape[:-1]
         img, valid = self.padded(data, PAD)
 

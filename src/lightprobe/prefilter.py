@@ -29,7 +29,6 @@ import numpy as np
 from .envmap import EnvMap, box_reduce, resample
 from .errors import UsageError
 from .frames import WORLD, Frame
-from .kernels import ggx_lobe_sums
 from .layouts import CUBE
 from .progress import track
 
@@ -169,6 +168,8 @@ def _kernel_sums(r: np.ndarray, level: EnvMap, alpha: float, below: float = 2.0)
 
 
 def _lobe_sums(r, d, omega, values, alpha, below=2.0) -> tuple[np.ndarray, np.ndarray]:
+    from .kernels import ggx_lobe_sums  # numba loads with the first kernel, not with the package
+
     out = np.empty((len(r), 4))
     ggx_lobe_sums(np.ascontiguousarray(r, np.float64), np.ascontiguousarray(d.T, np.float32),
                   np.ascontiguousarray(omega, np.float32), np.ascontiguousarray(values.T, np.float32),

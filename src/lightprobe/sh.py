@@ -20,8 +20,8 @@ from functools import lru_cache
 from math import comb, factorial, pi, sqrt
 
 import numpy as np
-from numba import njit, prange
 
+from .jit import njit, prange
 from .envmap import EnvMap
 from .errors import UsageError
 from .frames import WORLD, Frame, frame as frame_named
