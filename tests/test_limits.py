@@ -44,3 +44,38 @@ def test_memory_estimates_bound_the_measured_peak(big_map, tmp_path, argv):
     res, peak = peak_of(*args)
     assert res.returncode == 0, res.stderr
     assert peak <= estimate <= 3 * peak, (peak, estimate)
+
+
+@pytest.mark.parametrize("setting, expected", [("1", 1), (None, None)])
+def test_one_thread_setting_for_kernels_and_blas(setting, expected):
+    """LIGHTPROBE_THREADS sizes numba's pool and BLAS's before they load; unset, the kernels use every core."""
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if not k.endswith("_NUM_THREADS") and k != "LIGHTPROBE_THREADS"}
+    if setting:
+        env["LIGHTPROBE_THREADS"] = setting
+    script = ("import os, numpy as np, lightprobe as lp, numba\n"
+              "env = lp.EnvMap(np.ones((8, 16, 3), np.float32), lp.layout('latlong'))\n"
+              "lp.project(env, 2)\n"
+              "print(numba.get_num_threads(), os.environ.get('OPENBLAS_NUM_THREADS'))\n")
+    out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True).stdout
+    threads, blas = out.split()
+    if expected:
+        assert (int(threads), blas) == (expected, setting)
+    else:
+        assert int(threads) == min(os.cpu_count(), 64) and blas == "None"
+
+
+def test_a_malformed_thread_setting_is_one_line(tmp_path):
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    env = {**os.environ, "LIGHTPROBE_THREADS": "many"}
+    res = subprocess.run([str(Path(sys.executable).parent / "lightprobe"), "sh", "--order", "2"], env=env,
+                         capture_output=True, text=True)
+    assert res.returncode == 2 and res.stderr.strip().splitlines() == [
+        "lightprobe: error: LIGHTPROBE_THREADS must be a positive whole number, got 'many'"], res.stderr

@@ -12,6 +12,12 @@ import os as _os
 _os.environ.setdefault("NUMBA_CACHE_DIR", _os.path.join(
     _os.environ.get("XDG_CACHE_HOME") or _os.path.join(_os.path.expanduser("~"), ".cache"), "lightprobe", "numba"))
 
+# One thread setting for everything below: LIGHTPROBE_THREADS sizes numba's pool and BLAS's before either loads
+# (a malformed value is reported when a kernel first runs, by lightprobe.limits.threads).
+if _os.environ.get("LIGHTPROBE_THREADS", "").strip().isdigit() and int(_os.environ["LIGHTPROBE_THREADS"]) > 0:
+    for _name in ("NUMBA_NUM_THREADS", "OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        _os.environ.setdefault(_name, _os.environ["LIGHTPROBE_THREADS"].strip())
+
 from .errors import InputError, LayoutError, LightprobeError, LightprobeWarning  # noqa: E402 - after the setting
 
 # Everything below loads on first use (PEP 562), so `import lightprobe` stays light: no numba, no OpenImageIO, no

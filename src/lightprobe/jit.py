@@ -11,6 +11,15 @@ import functools
 prange = range  # replaced in each kernel's module by numba.prange when the first kernel there compiles
 
 
+def use_threads() -> None:
+    """numba's kernels run on :func:`lightprobe.limits.threads` threads (at most the pool numba started with)."""
+    import numba
+
+    from .limits import threads
+
+    numba.set_num_threads(min(threads(), numba.config.NUMBA_NUM_THREADS))
+
+
 def njit(**options):
     """Like ``numba.njit(**options)``, compiled on the first call (and cached on disk as numba caches it)."""
     def decorate(fn):
@@ -22,6 +31,7 @@ def njit(**options):
             if compiled is None:
                 import numba
 
+                use_threads()
                 fn.__globals__["prange"] = numba.prange
                 compiled = numba.njit(**options)(fn)
             return compiled(*args)

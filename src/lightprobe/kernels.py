@@ -12,6 +12,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from .jit import use_threads
+
+use_threads()  # LIGHTPROBE_THREADS, as for the kernels compiled through lightprobe.jit
+
 
 @njit(cache=True, parallel=True, fastmath=False)
 def gather_bilinear(img, valid, face, x, y, out):  # pragma: no cover - compiled

@@ -8,6 +8,8 @@ used (one line, exit 2), never at import. Work is refused *before* it starts whe
 * ``LIGHTPROBE_MAX_TRIANGLES`` (default 2·10⁷): triangles of one scene, all meshes together.
 * ``LIGHTPROBE_MAX_MEMORY`` (bytes, or with a suffix K, M, G; default half of the machine's physical memory): the
   estimated peak resident memory of one command.
+* ``LIGHTPROBE_THREADS`` (default all cores): threads of the compiled kernels and of BLAS, so that a process pool
+  or a Dask worker can run one thread per process without oversubscribing the machine.
 """
 
 from __future__ import annotations
@@ -32,6 +34,11 @@ def _positive_env(name: str, default: int, units: bool = False) -> int:
         kind = "a positive number of bytes (e.g. 8G)" if units else "a positive whole number"
         raise UsageError(f"{name} must be {kind}, got {text[:40]!r}")
     return value
+
+
+def threads() -> int:
+    """Threads for numba's kernels and BLAS: ``LIGHTPROBE_THREADS``, or every core."""
+    return _positive_env("LIGHTPROBE_THREADS", os.cpu_count() or 1)
 
 
 def max_pixels() -> int:
