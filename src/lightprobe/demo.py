@@ -32,7 +32,7 @@ from .irradiance import brute_irradiance, error_report, irradiance_map, referenc
 from .layouts import LAYOUTS
 from .progress import track
 from .sh import SHCoeffs, name, project
-from .tonemap import auto_exposure, heatmap, srgb_encode, to_uint8
+from .tonemap import auto_exposure, heatmap
 
 
 @dataclass
@@ -334,13 +334,9 @@ def _filament_spheres(rep: Report, browser, server, folder: Path, sh, sun: np.nd
     """Filament's web build drawing a white rough sphere lit by our sh.txt, from the light and from the opposite
     side (Filament's web build has no panorama → SH path of its own: that is its native cmgen)."""
     import base64
-    import io
-
-    from PIL import Image
 
     from .engines import white_sphere_glb
     from .export import filament_coefficients
-    from .files import write_bytes
 
     white_sphere_glb(folder / "sphere.glb")
     page = browser.page("filament.html")
@@ -355,9 +351,7 @@ def _filament_spheres(rep: Report, browser, server, folder: Path, sh, sun: np.nd
         rgba = np.frombuffer(base64.b64decode(canvas), np.uint8).reshape(128, 128, 4)[::-1]
         linear = rgba[..., :3].astype(np.float32) / 255  # Filament's output without post-processing is linear
         name = f"engine_filament_ours_{'away' if away else 'toward'}"
-        buffer = io.BytesIO()
-        Image.fromarray(to_uint8(srgb_encode(linear))).save(buffer, format="PNG")
-        write_bytes(rep.out / f"{name}.png", buffer.getvalue())
+        write_image(rep.out / f"{name}.png", linear)  # sRGB-encoded for display, as every picture of the report
         pictures.append(figure(name, f"Filament 1.53: our sh.txt, {'away from' if away else 'toward'} the light", 200))
     return pictures
 

@@ -9,11 +9,13 @@ assumption, the one Babylon.js, Filament and three.js prefilter with):
 D_α the normalised GGX distribution with α = roughness² (the engines' "alphaG"). α = 0 is the mirror: the map itself.
 Which α each level holds is the engine's choice, so it is an argument; :func:`babylon_alphas` gives Babylon's.
 
-The integral is estimated by filtered importance sampling (Křivánek & Colbert 2008): K Hammersley samples of D_α,
-each looked up (trilinearly) in the box-filtered pyramid of the source at the level whose texel matches the sample's
-solid angle. The same K samples serve every texel, so a level costs K vectorised lookups over its texels. A uniform
-map stays exactly uniform (the weights are normalised); against brute-force integration over every source texel the
-chain is within a few per cent (tests).
+How it is computed: the brightest texels (a sun) are taken out and summed exactly as point sources. The rest is
+summed directly over a pyramid level fine enough for the lobe where that is affordable (the wide lobes of the
+coarse mips), else estimated by filtered importance sampling (Křivánek & Colbert 2008: K Hammersley samples of
+D_α, each looked up trilinearly in the box-filtered pyramid at the level whose texel matches the sample's solid
+angle) near r, with a direct sum over a coarse level for the lobe's far tail. A uniform map stays exactly uniform
+(every part is normalised by the same estimate for L = 1); against brute-force integration over every source
+texel the chain is within 1 % in the median texel (tests/test_prefilter.py).
 
 Frames: the chain is a :data:`~lightprobe.layouts.CUBE` map (OpenGL face orientation) of the directions of
 ``frame``: texel direction d shows the world direction ``frame.to_world(d)``.
@@ -222,8 +224,8 @@ def prefilter_cube(env: EnvMap, size: int, alphas: list[float] | None = None, fr
     1×1, level i prefiltered with ``alphas[i]`` (default :func:`babylon_alphas`), in the directions of ``frame``.
 
     The source is first resampled (energy-conserving) into a cube of ``size`` in ``frame`` (unless it is one
-    already); level 0 (α = 0) is that cube, the mirror image. The brightest ``peaks`` texels are summed exactly (:func:`split_peaks`), the rest by
-    filtered importance sampling with ``samples`` GGX samples per texel."""
+    already); level 0 (α = 0) is that cube, the mirror image. The brightest ``peaks`` texels are summed exactly
+    (:func:`split_peaks`), the rest directly or with ``samples`` GGX samples per texel (see the module docstring)."""
     if size < 1 or size & (size - 1):
         raise UsageError(f"a prefiltered cube needs a power-of-two size, got {size}")
     if size > MAX_SIZE:
@@ -270,20 +272,3 @@ def box_reduce_to(cube: EnvMap, size: int) -> EnvMap:
     while cube.grid[-1] > size:
         cube = box_reduce(cube)
     return cube
-
-
-def brute_force_prefiltered(env: EnvMap, r: np.ndarray, alpha: float) -> np.ndarray:
-    """P_α at unit world directions r (n, 3) by direct summation over every pixel of ``env`` (the test reference;
-    exact up to the map's own pixel size, slow: n × pixels)."""
-    d = env.directions().reshape(-1, 3)
-    omega = env.solid_angles().reshape(-1)
-    values = env.data.reshape(-1, 3).astype(np.float64)
-    out = np.empty((len(r), 3))
-    for start in range(0, len(r), 64):
-        rr = r[start:start + 64]
-        h = rr[:, None, :] + d[None, :, :]
-        h /= np.maximum(np.linalg.norm(h, axis=-1, keepdims=True), 1e-12)
-        cos_l = np.maximum(rr @ d.T, 0.0)
-        w = ggx_d(np.sum(h * rr[:, None, :], axis=-1), alpha) * cos_l * omega
-        out[start:start + 64] = (w @ values) / np.maximum(w.sum(axis=1), 1e-30)[:, None]
-    return out
