@@ -7,6 +7,12 @@ first compilation, when numba's own ``prange`` is put in the kernel's globals so
 from __future__ import annotations
 
 import functools
+import sys
+
+# Work (element operations: pixels × per-pixel work) from which loading numba — ~1 s and ~130 MB for its import and
+# the first cached kernel, more when a kernel must compile — is repaid by its kernels, where a numpy formulation
+# exists: the SH row sums cost numpy ~3.5 ns per pixel and order, so 2²⁸ is ~1 s of numpy (an 8k map at order 8).
+COMPILE_WORTH = 1 << 28
 
 prange = range  # replaced in each kernel's module by numba.prange when the first kernel there compiles
 
@@ -20,23 +26,47 @@ def use_threads() -> None:
     numba.set_num_threads(min(threads(), numba.config.NUMBA_NUM_THREADS))
 
 
-def njit(**options):
-    """Like ``numba.njit(**options)``, compiled on the first call (and cached on disk as numba caches it)."""
-    def decorate(fn):
-        compiled = None
+def worth_compiling(work: int) -> bool:
+    """Take a compiled kernel over its numpy formulation: numba is already loaded in this process (a batch, a
+    long session), or ``work`` is big enough to repay loading it. A CLI run on a 2k map stays on numpy."""
+    return "numba" in sys.modules or work >= COMPILE_WORTH
 
-        @functools.wraps(fn)
-        def call(*args):
-            nonlocal compiled
-            if compiled is None:
+
+def njit(**options):
+    """Like ``numba.njit(**options)``, compiled on the first call (and cached on disk as numba caches it).
+
+    Kernels may call other functions decorated here (helpers, ``inline="always"`` or not): when the first kernel
+    of a module compiles, every such function in its globals is swapped for its numba dispatcher, so numba can type
+    the calls."""
+    def decorate(fn):
+        dispatcher = None
+
+        def compiled():
+            nonlocal dispatcher
+            if dispatcher is None:
                 import numba
 
                 use_threads()
                 fn.__globals__["prange"] = numba.prange
-                compiled = numba.njit(**options)(fn)
-            return compiled(*args)
+                dispatcher = numba.njit(**options)(fn)
+                for name, value in list(fn.__globals__.items()):
+                    if getattr(value, "lazy_dispatcher", None) is not None and value is not call:
+                        fn.__globals__[name] = value.lazy_dispatcher()
+            return dispatcher
+
+        @functools.wraps(fn)
+        def call(*args):
+            return compiled()(*args)
 
         call.py_func = fn
+        call.lazy_dispatcher = compiled
         return call
 
     return decorate
+
+
+def dispatcher(fn):
+    """numba's dispatcher of a function decorated with :func:`njit` (which may already have been swapped in for it),
+    for compiled code outside the module, such as a test's kernel calling it."""
+    lazy = getattr(fn, "lazy_dispatcher", None)
+    return lazy() if lazy is not None else fn

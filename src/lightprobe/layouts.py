@@ -111,10 +111,16 @@ class Layout(ABC):
         layout whose formulas extend past the face edge (latlong: past a pole is the ring at azimuth + π; cube: the
         next face), so bilinear and cubic lookups are seamless without knowing the layout."""
         grid = data.shape[:-1]
-        face, row, col = _padding_index(self, grid, pad)
-        img = np.ascontiguousarray(data.reshape((self.faces,) + grid[-2:] + data.shape[-1:])[face, row, col])
-        valid = self.valid_mask(grid).reshape((self.faces,) + grid[-2:])[face, row, col].astype(np.float32)
-        return img.astype(np.float32), valid
+        faces = data.reshape((self.faces,) + grid[-2:] + data.shape[-1:])
+        h, w = grid[-2:]
+        img = np.empty((self.faces, h + 2 * pad, w + 2 * pad, data.shape[-1]), dtype=np.float32)
+        img[:, pad:pad + h, pad:pad + w] = faces  # interior texels are themselves, exactly
+        valid = np.empty(img.shape[:-1], dtype=np.float32)
+        valid[:, pad:pad + h, pad:pad + w] = self.valid_mask(grid).reshape((self.faces, h, w))
+        border, (face, row, col) = _padding_index(self, grid, pad)
+        img[border] = faces[face, row, col]
+        valid[border] = self.valid_mask(grid).reshape((self.faces, h, w))[face, row, col]
+        return img, valid
 
     def sampler(self, data: np.ndarray, kernel: str = "bilinear"):
         """A function ``d (..., 3) → values (..., C)``: lookup of ``data`` (``grid + (C,)``) at world directions,
@@ -145,19 +151,18 @@ class Layout(ABC):
 
 @lru_cache(maxsize=16)
 def _padding_index(lay: Layout, grid: Grid, pad: int):
-    """(face, row, col) index arrays of the padded image of :meth:`Layout.padded` (cached per grid)."""
+    """The border of :meth:`Layout.padded`'s image — a boolean mask of shape (F, H+2p, W+2p) — and, for its texels
+    in mask order, the (face, row, col) of the pixel each holds (cached per grid; only the border is computed)."""
     h, w = grid[-2:]
-    rows, cols = np.arange(-pad, h + pad), np.arange(-pad, w + pad)
-    v, u = np.meshgrid((rows + 0.5) / h, (cols + 0.5) / w, indexing="ij")
-    face = np.broadcast_to(np.arange(lay.faces)[:, None, None], (lay.faces,) + u.shape)
-    u, v = np.broadcast_to(u, face.shape), np.broadcast_to(v, face.shape)
+    border = np.ones((lay.faces, h + 2 * pad, w + 2 * pad), dtype=bool)
+    border[:, pad:pad + h, pad:pad + w] = False
+    face, prow, pcol = np.nonzero(border)
+    u, v = (pcol - pad + 0.5) / w, (prow - pad + 0.5) / h
     f, uu, vv = lay.dir_to_uv(lay.uv_to_dir(face, u, v))
     row = np.clip(np.floor(vv * h), 0, h - 1).astype(np.int64)
     col = np.clip(np.floor(uu * w), 0, w - 1).astype(np.int64)
-    inside = (u > 0) & (u < 1) & (v > 0) & (v < 1)  # interior texels are themselves, exactly
-    row = np.where(inside, np.floor(v * h).astype(np.int64), row)
-    col = np.where(inside, np.floor(u * w).astype(np.int64), col)
-    return np.where(inside, face, f), row, col
+    border.setflags(write=False)
+    return border, (f, row, col)
 
 
 # ============================================================================================================ latlong
@@ -208,6 +213,12 @@ class _DiscLayout(Layout):
         self.check_grid(grid)
         return _disc_solid_angles(self, grid[0]).copy()
 
+    def valid_mask(self, grid):
+        """``solid_angles(grid) > 0`` without integrating the interior: every pixel wholly inside the disc is valid;
+        of the rim pixels, those whose share of the disc is not 0 (a 1/n² part of the work)."""
+        self.check_grid(grid)
+        return _disc_valid_mask(self, grid[0]).copy()
+
     def _clamped_ab(self, u, v):
         """Disc coordinates (a right, b up), pulled onto the rim where they fall outside it.
 
@@ -246,9 +257,35 @@ def _disc_pixel_classes(n: int) -> tuple[np.ndarray, np.ndarray]:
     a = np.abs(2 * edges - 1)
     far_a = np.maximum(a[:-1], a[1:])  # per column (or row): the pixel's farthest and nearest |coordinate|
     near_a = np.where((edges[:-1] < 0.5) & (edges[1:] > 0.5), 0.0, np.minimum(a[:-1], a[1:]))
-    far = np.hypot(far_a[None, :], far_a[:, None])
-    near = np.hypot(near_a[None, :], near_a[:, None])
-    return far <= 1.0, (near < 1.0) & (far > 1.0)
+    interior, rim = np.empty((n, n), dtype=bool), np.empty((n, n), dtype=bool)
+    band = max(1, (1 << 18) // n)
+    for top in range(0, n, band):  # bands of rows: no n×n float64 temporaries
+        far = np.hypot(far_a[None, :], far_a[top:top + band, None])
+        near = np.hypot(near_a[None, :], near_a[top:top + band, None])
+        interior[top:top + band], rim[top:top + band] = far <= 1.0, (near < 1.0) & (far > 1.0)
+    return interior, rim
+
+
+@lru_cache(maxsize=8)
+def _disc_valid_mask(layout: _DiscLayout, n: int) -> np.ndarray:
+    interior, rim = _disc_pixel_classes(n)
+    rows, cols = np.nonzero(rim)
+    mask = interior.copy()
+    mask[rows, cols] = _rim_solid_angles(layout, n, rows, cols) > 0
+    mask.setflags(write=False)
+    return mask
+
+
+def _rim_solid_angles(layout: _DiscLayout, n: int, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """Solid angles of rim pixels (a fine midpoint rule: the density jumps to 0 at the rim), in chunks."""
+    sub = (np.arange(_RIM_SUBSAMPLES) + 0.5) / _RIM_SUBSAMPLES
+    out = np.empty(len(rows))
+    for start in range(0, len(rows), 2048):
+        r, c = rows[start:start + 2048], cols[start:start + 2048]
+        u = (c[:, None, None] + sub[None, None, :]) / n
+        v = (r[:, None, None] + sub[None, :, None]) / n
+        out[start:start + 2048] = layout.uv_density(0, u, v).mean(axis=(1, 2)) / n**2
+    return out
 
 
 @lru_cache(maxsize=8)
@@ -260,17 +297,16 @@ def _disc_solid_angles(layout: _DiscLayout, n: int) -> np.ndarray:
     """
     interior, rim = _disc_pixel_classes(n)
     omega = np.zeros((n, n))
-    rows, cols = np.nonzero(interior)
-    u = (cols[:, None, None] + _GL_X[None, None, :]) / n
-    v = (rows[:, None, None] + _GL_X[None, :, None]) / n
     wts = _GL_W[None, :, None] * _GL_W[None, None, :]
-    omega[rows, cols] = (layout.uv_density(0, u, v) * wts).sum(axis=(1, 2)) / n**2
-
+    band = max(1, (1 << 16) // n)
+    for top in range(0, n, band):  # bands of rows: the point grids stay ~10 MB
+        rows, cols = np.nonzero(interior[top:top + band])
+        rows = rows + top
+        u = (cols[:, None, None] + _GL_X[None, None, :]) / n
+        v = (rows[:, None, None] + _GL_X[None, :, None]) / n
+        omega[rows, cols] = (layout.uv_density(0, u, v) * wts).sum(axis=(1, 2)) / n**2
     rows, cols = np.nonzero(rim)
-    sub = (np.arange(_RIM_SUBSAMPLES) + 0.5) / _RIM_SUBSAMPLES
-    u = (cols[:, None, None] + sub[None, None, :]) / n
-    v = (rows[:, None, None] + sub[None, :, None]) / n
-    omega[rows, cols] = layout.uv_density(0, u, v).mean(axis=(1, 2)) / n**2
+    omega[rows, cols] = _rim_solid_angles(layout, n, rows, cols)
     omega.setflags(write=False)
     return omega
 
@@ -338,6 +374,18 @@ class Sphere(_DiscLayout):
         area = g[1:, 1:] - g[:-1, 1:] - g[1:, :-1] + g[:-1, :-1]
         interior, rim = _disc_pixel_classes(n)
         return np.where(interior | rim, 4 * np.maximum(area, 0.0), 0.0)  # exact 0 off the disc
+
+    def valid_mask(self, grid):
+        """``solid_angles(grid) > 0``, with the exact areas of the rim pixels only."""
+        self.check_grid(grid)
+        n = grid[0]
+        interior, rim = _disc_pixel_classes(n)
+        rows, cols = np.nonzero(rim)
+        e = np.linspace(-1.0, 1.0, n + 1)
+        area = (_quarter_disc_area(e[rows + 1], e[cols + 1]) - _quarter_disc_area(e[rows], e[cols + 1])
+                - _quarter_disc_area(e[rows + 1], e[cols]) + _quarter_disc_area(e[rows], e[cols]))
+        interior[rows, cols] = area > 0
+        return interior
 
     def dir_to_uv(self, d):
         local = np.asarray(d, dtype=np.float64) @ self.camera_axes

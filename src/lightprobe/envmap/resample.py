@@ -3,13 +3,17 @@
 from __future__ import annotations
 
 import math
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import LayoutError, UsageError
 from ..layouts import CUBE, Cross, Layout
+from .. import limits
 from ..limits import check_memory, check_pixels
 from ..progress import track
+from . import fused
 from .map import EnvMap, owned
 
 _CHUNK_SAMPLES = 1 << 18  # direction lookups per chunk of a resampling pass (bounds memory to ~100 MB)
@@ -18,7 +22,8 @@ MAX_FOOTPRINT_RATIO = 16  # source pixels per target pixel above which the sourc
 
 def _valid_ratio(source: EnvMap, target: Layout, grid: tuple[int, ...]) -> float:
     """Valid source pixels per valid target pixel."""
-    return float(source.valid_mask().sum()) / max(int(target.valid_mask(grid).sum()), 1)
+    target_pixels = math.prod(grid) if target.valid_fraction == 1.0 else int(target.valid_mask(grid).sum())
+    return source.valid_pixels / max(target_pixels, 1)
 
 
 def auto_samples(ratio: float) -> int:
@@ -71,16 +76,142 @@ def resample(
     at most half a source pixel apart, so ∫L dω is conserved (to ~0.1 % even for a sun of one pixel) and a uniform
     map stays exactly uniform; sources with over 16 pixels per target pixel are first box-reduced (exactly
     energy-preserving). ``rotation`` R turns the environment: the target at direction d shows the source at Rᵀd.
+    The work is one compiled pass (:mod:`lightprobe.envmap.fused`) whose memory is the output.
     """
-    size = size or target.default_size(int(source.valid_mask().sum()))
+    plan = _plan(source, target, size, rotation, samples)
+    if plan is None:
+        source, grid, k = _prepared(source, target, size, samples)
+        return reference_resample(source, target, grid, k, rotation)  # a layout the kernel does not know
+    out = np.empty(plan.lines_shape, dtype=np.float32)
+    step = max(64, -(-len(out) // 16))
+    for first in track(range(0, len(out), step), f"resampling to {target.name}", total=-(-len(out) // step)):
+        plan.fill(out[first:first + step], first)
+    return plan.finish(out)
+
+
+def resample_strips(source: EnvMap, target: Layout, size: int | None = None, *, rotation: np.ndarray | None = None,
+                    samples: int | None = None, strip_pixels: int = 1 << 18):
+    """:func:`resample` for writing a file as it is computed: ``(shape, strips)`` — the (H, W) of the target's
+    image file (a cube's 6N × N strip) and an iterator of ``(top, rows)``, float32 (n, W, 3) blocks of image rows of
+    about ``strip_pixels`` pixels, top to bottom. The same values as :func:`resample`; memory is one strip, not the
+    map. Crosses (whose tiles are turned) and layouts the kernel does not know come as one strip."""
+    plan = _plan(source, target, size, rotation, samples)
+    if plan is None or isinstance(target, Cross):
+        from .files import to_image
+
+        image = to_image(resample(source, target, size, rotation=rotation, samples=samples))
+        return image.shape[:2], iter([(0, image)])
+    faces, h, w = plan.lines_shape[0] // plan.height, plan.height, plan.lines_shape[1]
+    rows = max(1, strip_pixels // (faces * w))
+
+    def strips():
+        for top in track(range(0, h, rows), f"resampling to {target.name}", total=-(-h // rows)):
+            n = min(rows, h - top)
+            block = np.empty((faces, n, w, 3), dtype=np.float32)
+            for face in range(faces):
+                plan.fill(block[face], face * h + top)
+            yield top, block.transpose(1, 0, 2, 3).reshape(n, faces * w, 3)  # a cube file's rows: faces side by side
+
+    return (h, faces * w), strips()
+
+
+def _prepared(source: EnvMap, target: Layout, size: int | None, samples: int | None):
+    """Checks, then (source, target grid, k): a cross source as cube faces, box-reduced while it has over
+    :data:`MAX_FOOTPRINT_RATIO` pixels per target pixel, and the supersampling rate."""
+    size = size or target.default_size(source.valid_pixels)
     pixels = check_size(target, size)
-    check_memory(resample_memory(math.prod(source.grid), pixels, target), f"resampling to {target.name} size {size}")
+    check_memory(resample_memory(math.prod(source.grid), pixels, target), f"resampling to {target.name} size {size}",
+                 kernels=True)
     grid = target.grid_shape(size)
     if isinstance(source.layout, Cross):  # exact rearrangement; the cube has a seamless padding
         source = EnvMap(source.layout.to_cube(source.data), CUBE)
     while samples is None and _valid_ratio(source, target, grid) > MAX_FOOTPRINT_RATIO and _reducible(source):
         source = box_reduce(source)
-    k = samples or auto_samples(_valid_ratio(source, target, grid))
+    return source, grid, samples or auto_samples(_valid_ratio(source, target, grid))
+
+
+def _face_layout(target: Layout) -> Layout:
+    """The layout the kernel fills: a cross is filled as cube faces and rearranged (exactly: same texel centres)."""
+    return CUBE if isinstance(target, Cross) else target
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """Everything :func:`lightprobe.envmap.fused.resample_into` needs, prepared once for a map's lines."""
+
+    target: Layout
+    filled: Layout  # what the kernel fills (cube faces for a cross)
+    grid: tuple[int, ...]  # the filled layout's grid
+    height: int  # rows per face
+    args: tuple  # the kernel's arguments before ``out, first``
+
+    @property
+    def lines_shape(self) -> tuple[int, int, int]:
+        faces = self.grid[0] if len(self.grid) == 3 else 1
+        return faces * self.height, self.grid[-1], 3
+
+    def fill(self, out: np.ndarray, first: int) -> None:
+        """Compute lines ``first`` … ``first + len(out) − 1`` (face-major rows) into ``out``, in bands on
+        :func:`lightprobe.limits.threads` threads (the kernel releases the GIL)."""
+        threads = min(limits.threads(), max(1, len(out) // 8))
+        if threads == 1:
+            fused.resample_into(*self.args, out, first)
+            return
+        band = max(1, -(-len(out) // (4 * threads)))  # 4 bands a thread: the slow bands (poles) even out
+        starts = range(0, len(out), band)
+        with ThreadPoolExecutor(threads) as pool:
+            list(pool.map(lambda s: fused.resample_into(*self.args, out[s:s + band], first + s), starts))
+
+    def finish(self, lines: np.ndarray) -> EnvMap:
+        out = lines.reshape(self.grid + (3,))
+        if isinstance(self.target, Cross):
+            out = self.target.from_cube(out)
+        return EnvMap(owned(out), self.target)
+
+
+def _plan(source: EnvMap, target: Layout, size: int | None, rotation, samples: int | None) -> _Plan | None:
+    """The compiled pass for this resampling, or None when the kernel does not know one of the layouts."""
+    if fused.CODES.get(source.layout.name) is None and not isinstance(source.layout, Cross):
+        return None
+    if fused.CODES.get(_face_layout(target).name) is None:
+        return None
+    source, grid, k = _prepared(source, target, size, samples)
+    filled = _face_layout(target)
+    grid = filled.grid_shape(target.size_of(grid))
+    faces = grid if filled.faces > 1 else (1,) + grid
+    src_kind = fused.CODES[source.layout.name]
+    if src_kind == fused.LATLONG:  # read in place: columns wrap and rows reflect across the poles in the kernel
+        img, valid = np.ascontiguousarray(source.data)[None], np.ones((1, 1, 1), dtype=np.float32)
+    else:
+        img, valid = source.layout.padded(source.data)
+        if source.all_valid:  # a cube's padding is valid everywhere: no table of ones for the kernel to read
+            valid = np.ones((1, 1, 1), dtype=np.float32)
+    all_valid = filled.valid_fraction == 1.0  # latlong, cube: no per-pixel mask
+    tgt_valid = (np.ones((1, 1, 1), dtype=np.uint8) if all_valid
+                 else filled.valid_mask(grid).reshape(faces).astype(np.uint8))
+    turn = np.eye(3) if rotation is None else np.asarray(rotation, dtype=np.float64)
+    args = (src_kind, img, valid, _axes(source.layout), source.grid[-2], source.grid[-1],
+            fused.CODES[filled.name], _axes(filled), faces[1], tgt_valid, all_valid, k, turn)
+    return _Plan(target, filled, grid, faces[1], args)
+
+
+def _fused_resample(source: EnvMap, target: Layout, grid: tuple[int, ...], k: int,
+                    rotation: np.ndarray | None) -> EnvMap:
+    """The compiled pass at a given supersampling rate k (for tests comparing it with :func:`reference_resample`)."""
+    plan = _plan(source, target, target.size_of(grid), rotation, k)
+    out = np.empty(plan.lines_shape, dtype=np.float32)
+    plan.fill(out, 0)
+    return plan.finish(out)
+
+
+def _axes(lay: Layout) -> np.ndarray:
+    return np.asarray(getattr(lay, "camera_axes", np.eye(3)), dtype=np.float64)
+
+
+def reference_resample(source: EnvMap, target: Layout, grid: tuple[int, ...], k: int,
+                       rotation: np.ndarray | None) -> EnvMap:
+    """The numpy formulation of :func:`resample` (k×k lookups per target pixel, in chunks): the reference the
+    compiled kernel is tested against, and the path for layouts it does not know."""
     lookup = source.layout.sampler(source.data, "bspline")
     sub = (np.arange(k) + 0.5) / k
     h, w = grid[-2:]
@@ -117,13 +248,12 @@ def resample(
 _ANY_DIRECTION = np.array([0.0, 0.0, -1.0])  # stands in for subsamples off the valid region (their weight is 0)
 
 
-# Peak bytes of :func:`resample` (measured on 2048×1024 and 4096×2048 sources, tests/test_limits.py). Per source
-# pixel: the padded copy the B-spline lookup reads, box reductions, the source's geometry tables (~80 B measured).
-# Per target pixel: the float32 output, the flat index arrays and validity mask (~30 B); a disc layout's exact
-# solid angles take 4×4 Gauss–Legendre points per pixel of the whole grid (~390 B measured).
-RESAMPLE_BYTES_PER_SOURCE_PIXEL = 96
-RESAMPLE_BYTES_PER_TARGET_PIXEL = {"angular": 440, "sphere": 440}
-RESAMPLE_BYTES_PER_TARGET_PIXEL_DEFAULT = 64
+# Peak bytes of :func:`resample` beyond the source (measured on 2048×1024 and 4096×2048 sources,
+# tests/test_limits.py). Per source pixel: the padded copy a cube or disc source is read from (a latlong is read in
+# place), box reductions. Per target pixel: the float32 output and, for discs, the validity mask.
+RESAMPLE_BYTES_PER_SOURCE_PIXEL = 24
+RESAMPLE_BYTES_PER_TARGET_PIXEL = {"angular": 20, "sphere": 20}
+RESAMPLE_BYTES_PER_TARGET_PIXEL_DEFAULT = 16
 
 
 def check_size(layout: Layout, size: int) -> int:
