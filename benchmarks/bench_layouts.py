@@ -5,8 +5,8 @@
 Baselines: OpenImageIO's own read of the same file (ImageInput.read_image as float: decoding only, no checks),
 one numpy pass over the same pixels (an elementwise multiply into a preallocated array), and a plain nearest-pixel
 numpy resampler (directions of the target's pixel centres → source pixel → fancy index; no footprint, no
-filtering) doing the same conversion. Issue 9's targets: reading within 1.5× of OpenImageIO, conversion within 3×
-of the nearest resampler.
+filtering) doing the same conversion, generic over layouts (float64 directions: slower than the float32 per-face
+one of bench_peers.py, which is the baseline issue 9's figures quote).
 """
 
 from __future__ import annotations

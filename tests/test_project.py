@@ -11,7 +11,7 @@ from conftest import ROOT
 
 # Each module's floor; a module may import only from its own floor or below.
 FLOORS = {
-    "errors": 0, "progress": 0, "kernels": 0, "jit": 0, "tonemap": 0, "frames": 0, "files": 0, "limits": 0, "io": 1,
+    "errors": 0, "names": 0, "progress": 0, "kernels": 0, "jit": 0, "tonemap": 0, "frames": 0, "files": 0, "limits": 0, "io": 1,
     "layouts": 1, "data": 0, "envmap": 2, "sh": 3, "irradiance": 4, "shfile": 4, "prefilter": 3, "export": 5, "design": 5, "containers": 6, "render": 8,
     "engines": 9, "demo": 9, "cli": 10, "__init__": 10,
 }
@@ -57,7 +57,7 @@ def test_compiled_kernels_are_cached_in_the_user_cache_folder(tmp_path):
     script = ("import numpy as np, lightprobe as lp\n"
               "from lightprobe.sh import project\n"
               "env = lp.EnvMap(np.ones((4, 8, 3), np.float32), lp.layout('latlong'))\n"
-              "print(project(env, 2).coeffs[0, 0])\n")
+              "print(project(env, 2, compiled=True).coeffs[0, 0])\n")
     env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path)}
     env.pop("NUMBA_CACHE_DIR", None)
     res = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=300)
@@ -85,8 +85,35 @@ def test_import_and_help_stay_light():
               "names = [lp.read_envmap, lp.EnvMap, lp.project, lp.SHCoeffs, lp.export, lp.irradiance_map, lp.layout]\n"
               "import numpy as np\n"
               "env = lp.EnvMap(np.ones((8, 16, 3), np.float32), lp.layout('latlong'))\n"
-              "print(round(float(lp.project(env, 2).coeffs[0, 0]), 6))\n"
+              "print(round(float(lp.project(env, 2, compiled=True).coeffs[0, 0]), 6))\n"
               "import numba, lightprobe.sh as sh\n"
               "print(sh.prange is numba.prange)\n")
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True).stdout.split()
     assert out == ["False", "False", "False", f"{round(float(np.sqrt(4 * np.pi)), 6)}", "True"], out
+
+
+def test_the_command_lines_names_are_the_implementations_tables():
+    """lightprobe.names (numpy-free, for --help) lists exactly the names each implementing table has, in order."""
+    from importlib import import_module
+
+    export, frames, layouts, names, sh, tonemap, methods = (import_module(f"lightprobe.{m}") for m in (
+        "export", "frames", "layouts", "names", "sh", "tonemap", "render.methods"))
+
+    assert names.LAYOUTS == tuple(layouts.LAYOUTS)
+    assert names.FRAMES == tuple(frames.FRAMES)
+    assert names.WINDOWS == sh.WINDOWS and names.CURVES == tonemap.CURVES
+    assert names.EXPORT_TARGETS == export.TARGETS == tuple(export.DEFAULT_FRAMES)
+    assert names.RENDER_METHODS == tuple(methods.METHODS)
+
+
+def test_help_loads_no_numpy():
+    """`lightprobe --help` and every command's --help list their choices without importing numpy (issue 9)."""
+    import subprocess
+    import sys
+
+    script = ("import sys, contextlib, io\nfrom lightprobe.cli import main, COMMANDS\n"
+              "with contextlib.redirect_stdout(io.StringIO()):\n"
+              "    codes = [main(['--help'])] + [main([c.__name__.rsplit('.', 1)[1], '--help']) for c in COMMANDS]\n"
+              "print(codes, 'numpy' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == f"{[0] * 11} False"

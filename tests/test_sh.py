@@ -92,14 +92,31 @@ def test_latlong_fast_path_equals_the_direct_sum():
     np.testing.assert_allclose(fast.coeffs, slow.coeffs, rtol=1e-10, atol=1e-12 * np.abs(slow.coeffs).max())
 
 
+@pytest.mark.parametrize("compiled", [True, False], ids=["kernels", "numpy"])
 @pytest.mark.parametrize("height", [1, 3, 32, 33])  # W = 2H: divisible by 4 or not
-@pytest.mark.parametrize("l_max", [0, 1, 2, 3, 6])
-def test_every_latlong_kernel_equals_the_direct_sum(height, l_max):
-    """The lat-long fast paths (SH9 half-row fold, quarter-row fold, plain sweep) against Σ L Y Δω."""
+@pytest.mark.parametrize("l_max", [0, 1, 2, 3, 6, 16])
+def test_every_latlong_kernel_equals_the_direct_sum(height, l_max, compiled):
+    """The lat-long fast paths (SH9 half-row fold, quarter-row fold with the orders innermost, numpy matrix
+    products) against Σ L Y Δω evaluated at every pixel."""
     data = np.random.default_rng(height * 10 + l_max).random((height, 2 * height, 3)).astype(np.float32)
     env = EnvMap(data, LATLONG)
-    fast, slow = project(env, l_max), project(env, l_max, fast=False)
+    fast, slow = project(env, l_max, compiled=compiled), project(env, l_max, fast=False)
     np.testing.assert_allclose(fast.coeffs, slow.coeffs, rtol=1e-10, atol=1e-12 * np.abs(slow.coeffs).max())
+
+
+def test_the_projection_takes_kernels_only_where_they_repay_loading_numba():
+    """A CLI run on a 2k map stays on numpy (loading numba costs more than that projection); in a process where
+    numba is loaded, or on a big enough map, the kernels run. Checked in a fresh interpreter."""
+    import subprocess
+    import sys
+
+    script = ("import sys, numpy as np, lightprobe as lp\n"
+              "from lightprobe.sh import project\n"
+              "env = lp.EnvMap(np.ones((512, 1024, 3), np.float32), lp.layout('latlong'))\n"
+              "project(env, 2); print('numba' in sys.modules)\n"
+              "from lightprobe.jit import worth_compiling; print(worth_compiling(1 << 30))\n")
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["False", "True"]
 
 
 def test_frame_change_to_rh2001_negates_odd_z():

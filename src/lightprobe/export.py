@@ -20,16 +20,16 @@ from math import pi
 
 import numpy as np
 
+from .names import EXPORT_TARGETS, GLTF_SCALINGS
 from .errors import UsageError
 from .irradiance import C1, C2, C3, C4, C5
 from .frames import BABYLON, FILAMENT, THREEJS, UNITY, WORLD, Frame, frame as frame_named
 from .sh import SHCoeffs, a_hat_per_coefficient, name
 from .shfile import sh_json
 
-TARGETS = ("json", "threejs", "filament", "unity", "gltf", "babylon", "glsl")
+TARGETS = EXPORT_TARGETS
 DEFAULT_FRAMES = {"json": WORLD, "threejs": THREEJS, "filament": FILAMENT, "unity": UNITY, "gltf": BABYLON,
                   "babylon": BABYLON, "glsl": WORLD}
-GLTF_SCALINGS = ("irradiance", "pi-radiance")
 
 BASIS_CONSTANTS = np.array([0.5 * np.sqrt(1 / pi)] + [0.5 * np.sqrt(3 / pi)] * 3
                            + [0.5 * np.sqrt(15 / pi)] * 2 + [0.25 * np.sqrt(5 / pi)] + [0.5 * np.sqrt(15 / pi)]

@@ -23,6 +23,7 @@ renamed over the target.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import io as _bytes_io
 import os
 import stat
@@ -48,7 +49,8 @@ HALF_MAX = 65504.0
 # this cannot hold the pixels it claims, and is refused before the pixels are allocated. (EXR's PIZ and JPEG can
 # compress flat images further, so they get no such check; the memory budget still applies.)
 MAX_COMPRESSION = {".hdr": 192, ".pic": 192, ".rgbe": 192, ".pfm": 1, ".png": 1032}
-READ_BYTES_PER_PIXEL_BASE = 24  # float32 RGB result + its contiguous copy; plus 4 bytes per channel of the decode
+READ_BYTES_PER_PIXEL_BASE = 12  # the float32 RGB result (decoded in strips); plus 4 bytes per channel for the
+READ_STRIP_BYTES = 16 << 20  # strip decode and display decoding; and OpenImageIO's buffers for one strip
 
 
 @contextlib.contextmanager
@@ -119,7 +121,7 @@ class ImageHeader:
 
     def read_bytes(self) -> int:
         """Estimated peak memory of reading the pixels as float32 RGB (the decode buffer and the result)."""
-        return self.pixels * (READ_BYTES_PER_PIXEL_BASE + 4 * self.channels)
+        return self.pixels * (READ_BYTES_PER_PIXEL_BASE + 4 * self.channels) + READ_STRIP_BYTES
 
 
 def _open(path: Path):
@@ -194,18 +196,43 @@ def read_image(path: str | os.PathLike, working_bytes_per_pixel: int = 0) -> np.
         check_memory(header.read_bytes() + header.pixels * working_bytes_per_pixel,
                      f"{path} ({header.width}×{header.height} pixels)")
         channels = _rgb_channels(spec)
-        # R, G, B first and in order (nearly every file): read just those, already the array we return
-        direct = channels == [0, 1, 2]
         with captured_stderr() as said:
-            pixels = inp.read_image(0, 0, 0, 3 if direct else spec.nchannels, "float")
+            rgb = _read_rgb(inp, spec, channels)
             trouble = _error_text(inp) or _error_text()
-        if pixels is None or trouble:  # some readers report damage yet hand back (partly zero) pixels: refuse them
+        if rgb is None or trouble:  # some readers report damage yet hand back (partly zero) pixels: refuse them
             raise InputError(f"cannot read {path}: {trouble or _first_line(*said) or 'the pixel data is unreadable'}")
     finally:
         inp.close()
-    pixels = np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, 3 if direct else spec.nchannels)
-    rgb = pixels if direct else np.ascontiguousarray(pixels[..., channels])
     return srgb_decode(rgb) if _is_display_encoded(spec) else rgb
+
+
+_STRIP_BYTES = 2 << 20  # decoded bytes per strip of scanlines: OpenImageIO's own buffer stays this small
+
+
+def _read_rgb(inp, spec, channels: list[int]) -> np.ndarray | None:
+    """The R, G, B channels as one (H, W, 3) float32 array, decoded in strips of rows straight into it, so the peak
+    is the array plus one strip (a whole-image read holds a second copy of the image while it converts)."""
+    rgb = np.empty((spec.height, spec.width, 3), dtype=np.float32)
+    for top, strip in _rgb_strips(inp, spec, channels):
+        if strip is None:
+            return None
+        rgb[top:top + len(strip)] = strip
+    return rgb
+
+
+def _rgb_strips(inp, spec, channels: list[int]):
+    """(top row, (n, W, 3) float32) strips of an open image, top to bottom; (top, None) where decoding fails."""
+    direct = channels == [0, 1, 2]  # R, G, B first and in order (nearly every file): read just those
+    nch = 3 if direct else spec.nchannels
+    rows = -(-max(1, _STRIP_BYTES // max(1, spec.width * nch * 4)) // 32) * 32  # whole 16- and 32-line EXR blocks
+    for top in range(0, spec.height, rows):
+        bottom = min(top + rows, spec.height)
+        strip = inp.read_scanlines(0, 0, top, bottom, 0, 0, nch, "float")
+        if strip is None or inp.has_error:
+            yield top, None
+            return
+        strip = np.asarray(strip, dtype=np.float32).reshape(bottom - top, spec.width, nch)
+        yield top, strip if direct else strip[..., channels]
 
 
 def _check_rgb(rgb) -> np.ndarray:
@@ -228,17 +255,96 @@ def _encode_ldr(path: Path, display: np.ndarray) -> bytes:
     return buffer.getvalue()
 
 
-def _read_back(path: Path, expected: np.ndarray, exact: bool):
-    """A verifier for :func:`atomic_path`: the temporary file must decode to ``expected``'s shape (and values)."""
+def _digest(strip: np.ndarray, digest) -> None:
+    """Add a strip of float32 pixels to a running hash (NaNs made one bit pattern: writers may change them)."""
+    digest.update(np.where(np.isnan(strip), np.float32(np.nan), strip).astype(np.float32).tobytes())
+
+
+def _read_back(path: Path, shape: tuple[int, int], expected, exact: bool):
+    """A verifier for :func:`atomic_path`: the temporary file must decode to ``shape`` and, when ``exact``, to
+    pixels whose hash is ``expected.digest()`` (read in strips: nothing the size of the image is held)."""
     def verify(tmp: Path) -> None:
+        back = hashlib.blake2b(digest_size=16)
         try:
-            back = read_image(tmp)
+            inp = _open(tmp)
+            try:
+                spec = inp.spec()
+                if (spec.height, spec.width) != shape:
+                    raise InputError("wrong size")
+                for _, strip in _rgb_strips(inp, spec, _rgb_channels(spec)):
+                    if strip is None:
+                        raise InputError("undecodable pixels")
+                    _digest(strip, back)
+            finally:
+                inp.close()
         except InputError as e:
             raise InputError(f"cannot write {path}: the written file does not read back "
                              f"({str(e).split(': ', 1)[-1]})") from None
-        if back.shape != expected.shape or (exact and not np.array_equal(back, expected, equal_nan=True)):
+        if exact and back.digest() != expected.digest():
             raise InputError(f"cannot write {path}: the written file does not read back as written")
     return verify
+
+
+def _array_strips(rgb: np.ndarray, rows: int):
+    for top in range(0, rgb.shape[0], rows):
+        yield top, rgb[top:top + rows]
+
+
+def write_image_strips(path: str | os.PathLike, shape: tuple[int, int], strips, *, half: bool = False,
+                       inputs=()) -> Path:
+    """Write linear RGB to an HDR file (``.exr``, ``.hdr``, ``.pfm``) as it is computed: ``strips`` yields
+    ``(top, rows)`` blocks of (n, W, 3) float32 rows, top to bottom, of an image of ``shape`` (H, W). Memory is one
+    strip. Atomic like :func:`write_image`: the file is read back (in strips) before it replaces ``path``, and a
+    failure — including a strip that cannot be written, or values over the half range with ``half`` — leaves
+    nothing behind."""
+    path = Path(path)
+    ext = path.suffix.lower()
+    if ext not in HDR_WRITE_FORMATS:
+        raise InputError(f"cannot write {path}: streamed writing needs {', '.join(HDR_WRITE_FORMATS)}")
+    h, w = shape
+    pixel_type = "half" if half and ext == ".exr" else "float"
+    spec = oiio.ImageSpec(w, h, 3, pixel_type)
+    if ext == ".exr":
+        spec.attribute("compression", "zip")
+    expected = hashlib.blake2b(digest_size=16)
+    with atomic_path(path, inputs, verify=_read_back(path, (h, w), expected, exact=ext != ".hdr")) as tmp:
+        with captured_stderr() as said:
+            out = oiio.ImageOutput.create(str(tmp))
+            if out is None or not out.open(str(tmp), spec):
+                reason = _error_text(out) if out is not None else ""
+                raise InputError(f"cannot write {path}: {reason or _error_text() or 'OpenImageIO refused it'}")
+            ok, written = True, 0
+            try:
+                for top, rows in strips:
+                    rows = _check_rgb(rows)
+                    if top != written or rows.shape[1] != w or top + len(rows) > h:
+                        raise UsageError(f"write_image_strips: strip at row {top} does not continue a {w}×{h} image")
+                    if pixel_type == "half":
+                        _check_half(path, rows)
+                        rows = rows.astype(np.float16).astype(np.float32)
+                    rows = np.ascontiguousarray(rows)
+                    ok = out.write_scanlines(top, top + len(rows), 0, rows)
+                    if not ok:
+                        break
+                    _digest(rows, expected)
+                    written += len(rows)
+                err = _error_text(out)
+            finally:
+                closed = out.close()
+        if ok and written != h:
+            raise UsageError(f"write_image_strips: {written} of {h} rows were given")
+        if not ok or not closed:  # OpenImageIO's message names the temporary file: name the target instead
+            reason = (err or _first_line(*said) or "write failed").replace(str(tmp), str(path))
+            raise InputError(f"cannot write {path}: {reason}")
+    return path
+
+
+def _check_half(path: Path, rgb: np.ndarray) -> None:
+    if np.nanmax(np.abs(rgb), initial=0.0) > HALF_MAX:
+        raise InputError(
+            f"cannot write {path} as half floats: values up to {np.nanmax(rgb):.6g} exceed the half range "
+            f"({HALF_MAX:g}) and would become infinite; write float32 instead"
+        )
 
 
 def write_image(
@@ -266,28 +372,8 @@ def write_image(
     if ext in LDR_WRITE_FORMATS:
         display = np.clip(np.nan_to_num(rgb), 0, 1) if encoded else tonemap(rgb, exposure, curve)
         return write_bytes(path, _encode_ldr(path, display), inputs)
-    if half and ext == ".exr" and np.nanmax(np.abs(rgb), initial=0.0) > HALF_MAX:
-        raise InputError(
-            f"cannot write {path} as half floats: values up to {np.nanmax(rgb):.6g} exceed the half range "
-            f"({HALF_MAX:g}) and would become infinite; write float32 instead"
-        )
-    h, w = rgb.shape[:2]
-    pixels = np.ascontiguousarray(rgb)
-    pixel_type = "half" if half and ext == ".exr" else "float"
-    spec = oiio.ImageSpec(w, h, 3, pixel_type)
-    if ext == ".exr":
-        spec.attribute("compression", "zip")
-    expected = pixels.astype(np.float16).astype(np.float32) if pixel_type == "half" else pixels
-    with atomic_path(path, inputs, verify=_read_back(path, expected, exact=ext != ".hdr")) as tmp:
-        with captured_stderr() as said:
-            out = oiio.ImageOutput.create(str(tmp))
-            if out is None or not out.open(str(tmp), spec):
-                reason = _error_text(out) if out is not None else ""
-                raise InputError(f"cannot write {path}: {reason or _error_text() or 'OpenImageIO refused it'}")
-            ok = out.write_image(pixels)
-            err = _error_text(out)
-            closed = out.close()
-        if not ok or not closed:  # OpenImageIO's message names the temporary file: name the target instead
-            reason = (err or _first_line(*said) or "write failed").replace(str(tmp), str(path))
-            raise InputError(f"cannot write {path}: {reason}")
+    if half and ext == ".exr":
+        _check_half(path, rgb)  # before anything is written
+    rows = max(1, _STRIP_BYTES // max(1, 12 * rgb.shape[1]))
+    return write_image_strips(path, rgb.shape[:2], _array_strips(rgb, rows), half=half, inputs=inputs)
     return path

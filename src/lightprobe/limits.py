@@ -97,15 +97,17 @@ def check_pixels(count: int, what: str) -> None:
                           "(set LIGHTPROBE_MAX_PIXELS to raise it)")
 
 
-PROCESS_BYTES = 256 << 20  # resident memory of lightprobe before any data (Python, numpy, numba, OpenImageIO): ~200 MB
+PROCESS_BYTES = 80 << 20  # resident memory of lightprobe before any data (Python, numpy, OpenImageIO): ~55 MB
+KERNEL_BYTES = 160 << 20  # numba and LLVM, once a compiled kernel runs (loaded from the cache: ~130 MB measured)
 
 
-def check_memory(work_bytes: int, what: str, virtual_bytes: int = 0) -> None:
-    """Refuse work whose estimated peak, :data:`PROCESS_BYTES` plus ``work_bytes`` (the data's own memory), exceeds
-    :func:`max_memory`. ``virtual_bytes``: address space the work maps beyond what it touches (a JIT's
-    reservations), which counts only against a ``ulimit -v``."""
+def check_memory(work_bytes: int, what: str, virtual_bytes: int = 0, kernels: bool = False) -> None:
+    """Refuse work whose estimated peak, :data:`PROCESS_BYTES` (plus :data:`KERNEL_BYTES` when the work runs
+    compiled ``kernels``) plus ``work_bytes`` (the data's own memory), exceeds :func:`max_memory`.
+    ``virtual_bytes``: address space the work maps beyond what it touches (a JIT's reservations), which counts only
+    against a ``ulimit -v``."""
     limit = max_memory()
-    estimate = PROCESS_BYTES + work_bytes
+    estimate = PROCESS_BYTES + (KERNEL_BYTES if kernels else 0) + work_bytes
     left = _address_space_left()
     if left is not None and work_bytes + virtual_bytes > left:
         raise BudgetError(f"refusing {what}: it needs about {gib(work_bytes + virtual_bytes)} of address space, "

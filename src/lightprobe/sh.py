@@ -15,17 +15,19 @@ Convention (stated once, used everywhere):
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from functools import lru_cache
 from math import comb, factorial, pi, sqrt
 
 import numpy as np
 
-from .jit import njit, prange
+from .jit import njit, prange, worth_compiling
 from .envmap import EnvMap
 from .errors import UsageError
 from .frames import WORLD, Frame, frame as frame_named
 from .layouts import LatLong
+from .names import WINDOWS  # the names users type: numpy-free, for the command line
 
 QUANTITIES = ("radiance", "irradiance")
 
@@ -164,7 +166,6 @@ def _transform_matrix(l_max: int, q_bytes: bytes) -> np.ndarray:
 
 
 # ---- windows --------------------------------------------------------------------------------------------------------
-WINDOWS = ("none", "hanning", "lanczos", "auto")
 
 
 def window_weights(kind: str, l_max: int, width: float | None = None) -> np.ndarray:
@@ -313,47 +314,87 @@ _LATLONG_POLAR = np.array([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
 
 
 @njit(cache=True, parallel=True, fastmath=True)
-def _latlong_row_sums_folded(img, cos_table, sin_table, out):  # pragma: no cover - compiled
-    """Per row r: out[r, 0] = Σ_col img[r, col]; out[r, 2m−1] = Σ img·cos(mφ_col); out[r, 2m] = Σ img·sin(mφ_col),
-    for W divisible by 4, folding each row to a quarter first.
+def _latlong_row_sums_folded(img, cos_even, sin_even, cos_odd, sin_odd, out):  # pragma: no cover - compiled
+    """Per row r, the azimuthal sums Σ_col img·cos(mφ_col) and Σ img·sin(mφ_col) for every order m, in one sweep
+    over a quarter of the row, for W divisible by 4.
 
     The columns c, W−1−c, c+W/2 and W/2−1−c sit at azimuths φ, −φ, φ+π and π−φ, whose cos mφ and sin mφ differ
     only in sign: with pixels a, b, c, d there, Σ v cos mφ = (a + b ± (c + d)) cos mφ and
-    Σ v sin mφ = (a − b ± (c − d)) sin mφ, the sign + for even m and − for odd m. Each row is folded into four
-    quarter-length buffers, then swept per order like the plain kernel: about a quarter of the multiply-adds.
-    Tables hold the first W/4 columns."""
+    Σ v sin mφ = (a − b ± (c − d)) sin mφ, the sign + for even m and − for odd m. Each group of four pixels is
+    folded once, then added into every order's sums, the orders innermost and contiguous in the tables (q × n:
+    the first q = W/4 columns of cos/sin of the even orders 0, 2, … and of the odd orders 1, 3, …), where the
+    compiler vectorises them. ``out`` (H, 4, 3, n): even-cos, even-sin, odd-cos, odd-sin sums per channel."""
     h, w, _ = img.shape
     q = w // 4
     half = w // 2
-    n_m = cos_table.shape[0]
+    n_even, n_odd = cos_even.shape[1], cos_odd.shape[1]
     for r in prange(h):
-        fold = np.empty((4, 3, q))  # even-cos, odd-cos, even-sin, odd-sin
+        acc = np.zeros((4, 3, out.shape[3]))
         for col in range(q):
             for ch in range(3):
                 a = np.float64(img[r, col, ch])
                 b = np.float64(img[r, w - 1 - col, ch])
                 c = np.float64(img[r, col + half, ch])
                 d = np.float64(img[r, half - 1 - col, ch])
-                fold[0, ch, col] = (a + b) + (c + d)
-                fold[1, ch, col] = (a + b) - (c + d)
-                fold[2, ch, col] = (a - b) + (c - d)
-                fold[3, ch, col] = (a - b) - (c - d)
-        for ch in range(3):
-            total = 0.0
-            for col in range(q):
-                total += fold[0, ch, col]
-            out[r, 0, ch] = total
-        for m in range(1, n_m):
-            kc = 0 if m % 2 == 0 else 1
-            ks = 2 if m % 2 == 0 else 3
-            for ch in range(3):
-                sc = 0.0
-                ss = 0.0
-                for col in range(q):
-                    sc += fold[kc, ch, col] * cos_table[m, col]
-                    ss += fold[ks, ch, col] * sin_table[m, col]
-                out[r, 2 * m - 1, ch] = sc
-                out[r, 2 * m, ch] = ss
+                even_cos, odd_cos = (a + b) + (c + d), (a + b) - (c + d)
+                even_sin, odd_sin = (a - b) + (c - d), (a - b) - (c - d)
+                for j in range(n_even):
+                    acc[0, ch, j] += even_cos * cos_even[col, j]
+                    acc[1, ch, j] += even_sin * sin_even[col, j]
+                for j in range(n_odd):
+                    acc[2, ch, j] += odd_cos * cos_odd[col, j]
+                    acc[3, ch, j] += odd_sin * sin_odd[col, j]
+        out[r] = acc
+
+
+@lru_cache(maxsize=8)
+def _folded_tables(w: int, l_max: int):
+    """The folded kernel's tables for W columns (see :func:`_latlong_row_sums_folded`), and where each row sum
+    (order 0, then cos and sin of each m ≥ 1) lies in its output: (kind, order slot) per sum."""
+    phi = 2 * np.pi * ((np.arange(w // 4) + 0.5) / w - 0.5)
+    even, odd = np.arange(0, l_max + 1, 2), np.arange(1, max(l_max, 1) + 1, 2)
+    tables = [np.ascontiguousarray(fn(np.outer(phi, m))) for m in (even, odd) for fn in (np.cos, np.sin)]
+    for t in tables:
+        t.setflags(write=False)  # cached: shared by every later call
+    kind, slot = [0], [0]
+    for m in range(1, l_max + 1):
+        kind += [0, 1] if m % 2 == 0 else [2, 3]
+        slot += [m // 2] * 2
+    return tables, max(len(even), len(odd)), np.array(kind), np.array(slot)
+
+
+@lru_cache(maxsize=8)
+def _sh9_tables(w: int) -> tuple[np.ndarray, np.ndarray]:
+    """cos mφ and sin mφ, m = 0..2, of the first W/2 columns (the SH9 kernel's tables)."""
+    phi = 2 * np.pi * ((np.arange(w // 2) + 0.5) / w - 0.5)
+    m = np.arange(3)[:, None]
+    tables = np.cos(m * phi), np.sin(m * phi)
+    for t in tables:
+        t.setflags(write=False)  # cached: shared by every later call
+    return tables
+
+
+def _folded_row_sums(img: np.ndarray, l_max: int) -> np.ndarray:
+    """(H, 2 l_max + 1, 3) row sums (order 0, then cos and sin of each m ≥ 1) through the folded kernel."""
+    (cos_even, sin_even, cos_odd, sin_odd), n, kind, slot = _folded_tables(img.shape[1], l_max)
+    raw = np.empty((img.shape[0], 4, 3, n))
+    _latlong_row_sums_folded(img, cos_even, sin_even, cos_odd, sin_odd, raw)
+    return raw[:, kind, :, slot].transpose(1, 0, 2)  # (H, sums, 3)
+
+
+def _blas_row_sums(img: np.ndarray, l_max: int) -> np.ndarray:
+    """The same row sums as matrix products in numpy (float64, blocks of rows): no compiled kernel, for a process
+    in which numba has not been loaded (its import costs more than this whole projection of a 2k map)."""
+    h, w, _ = img.shape
+    phi = 2 * np.pi * ((np.arange(w) + 0.5) / w - 0.5)
+    m = np.arange(1, l_max + 1)[:, None]
+    table = np.empty((2 * l_max + 1, w))
+    table[0], table[1::2], table[2::2] = 1.0, np.cos(m * phi), np.sin(m * phi)
+    sums = np.empty((h, 2 * l_max + 1, 3))
+    rows = max(1, (1 << 20) // (3 * w))  # 8 MB of float64 a block
+    for top in range(0, h, rows):
+        sums[top:top + rows] = np.matmul(table[None], img[top:top + rows].astype(np.float64))
+    return sums
 
 
 @njit(cache=True, parallel=True, fastmath=True)
@@ -418,32 +459,38 @@ def _latlong_row_sums_sh9(img, cos_table, sin_table, out):  # pragma: no cover -
         out[r, 4, 2] = n22
 
 
-def _project_latlong(env: EnvMap, l_max: int) -> np.ndarray:
+def _project_latlong(env: EnvMap, l_max: int, compiled: bool) -> np.ndarray:
     h, w = env.grid
-    phi = 2 * np.pi * ((np.arange(w) + 0.5) / w - 0.5)
-    m = np.arange(l_max + 1)[:, None]
     img = np.ascontiguousarray(env.data)
-    if l_max <= 2:  # SH9 and below: one sweep over half of each row (W = 2H is always even)
-        m3 = np.arange(3)[:, None]
+    if not compiled:
+        sums = _blas_row_sums(img, l_max)
+    elif l_max <= 2:  # SH9 and below: one sweep over half of each row (W = 2H is always even)
         full = np.empty((h, 5, 3))
-        _latlong_row_sums_sh9(img, np.cos(m3 * phi[: w // 2]), np.sin(m3 * phi[: w // 2]), full)
+        _latlong_row_sums_sh9(img, *_sh9_tables(w), full)
         sums = full[:, : 2 * l_max + 1]
     else:  # higher orders: fold each row to a quarter first (W divisible by 4, see project)
-        sums = np.empty((h, 2 * l_max + 1, 3))
-        _latlong_row_sums_folded(img, np.cos(m * phi[: w // 4]), np.sin(m * phi[: w // 4]), sums)
+        sums = _folded_row_sums(img, l_max)
+    weights, which = _latlong_row_weights(h, w, l_max)
+    coeffs = np.einsum("ir,irc->ic", weights, sums[:, which].transpose(1, 0, 2))
+    # coefficients of L in frame P; L(d_world) = g(P d) ⇒ world coefficients are g's transformed by Q = Pᵀ
+    return transform_matrix(l_max, _LATLONG_POLAR.T) @ coeffs
+
+
+@lru_cache(maxsize=8)
+def _latlong_row_weights(h: int, w: int, l_max: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per coefficient (frame P), its weight for each row — the row's solid angle times Y_lm at the row's φ = 0
+    point (= √2 N_lm P_l^m(cos θ) for m > 0) — and which row sum it weights: order 0, cos mφ for +m, sin mφ for −m."""
     theta = np.pi * (np.arange(h) + 0.5) / h
     ring = np.stack([np.sin(theta), np.zeros(h), np.cos(theta)], axis=-1)  # φ = 0 point of each row, frame P
     legendre = basis(l_max, ring)  # at φ = 0: Y_l,+m = √2 N P cos 0, Y_l,−m = 0
-    omega = env.layout.row_solid_angles(env.grid)  # every pixel of a row has the same solid angle
-    coeffs = np.zeros((n_coeffs(l_max), 3))
+    omega = LatLong().row_solid_angles((h, w))  # every pixel of a row has the same solid angle
+    weights, which = np.zeros((n_coeffs(l_max), h)), np.zeros(n_coeffs(l_max), dtype=np.int64)
     for l in range(l_max + 1):
-        coeffs[index(l, 0)] = (omega * legendre[:, index(l, 0)]) @ sums[:, 0]
-        for mm in range(1, l + 1):
-            weight = omega * legendre[:, index(l, mm)]  # = √2 N_lm P_l^m(cos θ) (the √2 included)
-            coeffs[index(l, mm)] = weight @ sums[:, 2 * mm - 1]
-            coeffs[index(l, -mm)] = weight @ sums[:, 2 * mm]
-    # coefficients of L in frame P; L(d_world) = g(P d) ⇒ world coefficients are g's transformed by Q = Pᵀ
-    return transform_matrix(l_max, _LATLONG_POLAR.T) @ coeffs
+        for m in range(-l, l + 1):
+            weights[index(l, m)] = omega * legendre[:, index(l, abs(m))]
+            which[index(l, m)] = 0 if m == 0 else 2 * m - 1 if m > 0 else 2 * -m
+    weights.setflags(write=False)
+    return weights, which
 
 
 def _recurrence_tables(l_max: int):
@@ -508,16 +555,22 @@ def _project_generic(env: EnvMap, l_max: int) -> np.ndarray:
     return out.sum(axis=0)
 
 
-def project(env: EnvMap, l_max: int = 2, frame: str | Frame = WORLD, fast: bool = True) -> SHCoeffs:
+def project(env: EnvMap, l_max: int = 2, frame: str | Frame = WORLD, fast: bool = True,
+            compiled: bool | None = None) -> SHCoeffs:
     """Radiance SH coefficients L_lm = Σ_pixels L(d_p) Y_lm(d_p) Δω_p (exact per-pixel solid angles), in ``frame``.
 
-    Lat-long maps use the separable row-sum kernels (one pass over the pixels, O(S·l_max) work; above order 2 they
-    need W divisible by 4); every other map evaluates the basis at its pixel directions. Both compute the same sum.
+    Lat-long maps are separable: per-row azimuthal sums, then per-row Legendre weights (one pass over the pixels,
+    O(S·l_max) work). The row sums come from compiled kernels (above order 2 they need W divisible by 4) or, with
+    ``compiled`` False, from numpy matrix products; ``compiled`` None takes the kernels when numba is already
+    loaded or the map is big enough to repay loading it (:func:`lightprobe.jit.worth_compiling`). Every other map
+    evaluates the basis at its pixel directions. All compute the same sum (to float64 rounding).
     """
     if not isinstance(l_max, (int, np.integer)) or l_max < 0:
         raise UsageError(f"the SH order l_max must be a whole number ≥ 0, got {l_max!r}")
-    if fast and isinstance(env.layout, LatLong) and (l_max <= 2 or env.grid[1] % 4 == 0):
-        coeffs = _project_latlong(env, l_max)
+    if compiled is None:
+        compiled = worth_compiling(math.prod(env.grid) * (1 + l_max))
+    if fast and isinstance(env.layout, LatLong) and (not compiled or l_max <= 2 or env.grid[1] % 4 == 0):
+        coeffs = _project_latlong(env, l_max, compiled)
     else:
         coeffs = _project_generic(env, l_max)
     return SHCoeffs(coeffs).to_frame(frame)

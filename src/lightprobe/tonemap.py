@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import UsageError
+from .names import CURVES  # the names users type: numpy-free, for the command line
 
-CURVES = ("srgb", "aces")
 MAX_EXPOSURE = 64
 
 

@@ -66,6 +66,9 @@ def main(argv: list[str] | None = None) -> int:
     warnings.showwarning = _one_line_warnings()
     raise_on_termination()
     try:
+        from ..limits import threads
+
+        threads()  # a malformed LIGHTPROBE_THREADS is one line now, whether or not a kernel runs later
         parser = build_parser()
         args = parser.parse_args(argv)
         if not hasattr(args, "run"):

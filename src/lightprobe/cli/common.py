@@ -122,7 +122,7 @@ def add_option(p: argparse.ArgumentParser, *flags: str, type, help: str, **kwarg
 
 # ---- probes -------------------------------------------------------------------------------------------------------
 def layout_names() -> list[str]:
-    from ..layouts import LAYOUTS
+    from ..names import LAYOUTS
 
     return list(LAYOUTS)
 
@@ -144,9 +144,10 @@ def probe_path(path: Path | None) -> Path:
 
 
 def load(path: Path | None, layout: str | None, fix: bool = True, working_bytes_per_pixel: int = 0,
-         extra_bytes: int = 0, what: str = ""):
+         extra_bytes: int = 0, what: str = "", kernels: bool = False):
     """Read a probe (the shipped one when ``path`` is None) after checking that reading it plus
-    ``working_bytes_per_pixel`` per pixel plus ``extra_bytes`` fits the memory budget."""
+    ``working_bytes_per_pixel`` per pixel plus ``extra_bytes`` fits the memory budget (with numba's own memory
+    when the command runs compiled ``kernels``)."""
     from ..envmap import read_envmap
     from ..io import image_header
     from ..limits import check_memory
@@ -154,7 +155,7 @@ def load(path: Path | None, layout: str | None, fix: bool = True, working_bytes_
     source = probe_path(path)
     header = image_header(source)
     check_memory(header.read_bytes() + header.pixels * working_bytes_per_pixel + extra_bytes,
-                 what or f"{source} ({header.width}×{header.height} pixels)")
+                 what or f"{source} ({header.width}×{header.height} pixels)", kernels=kernels)
     return read_envmap(source, layout, fix=fix)
 
 

@@ -6,11 +6,12 @@ from pathlib import Path
 
 from .common import Number, Triple, add_option, layout_names, load, refuse
 
-WRITE_BYTES_PER_PIXEL = 40  # the flat output image, its tone-mapped or encoded copy, the read-back check
+LDR_WRITE_BYTES_PER_PIXEL = 40  # .png/.jpg: the flat output image, its tone-mapped and 8-bit copies, the encoding
+HDR_WRITE_BYTES = 32 << 20  # .exr/.hdr/.pfm are written in strips as they are computed: one strip, and the read-back
 
 
 def register(sub) -> None:
-    from ..tonemap import CURVES
+    from ..names import CURVES
 
     p = sub.add_parser("convert", help="convert between layouts (and rotate)",
                        description="Convert between layouts with footprint-aware resampling (∫L dω conserved), "
@@ -31,10 +32,10 @@ def register(sub) -> None:
 
 
 def run(args) -> None:
-    from ..envmap import check_size, resample, resample_memory
+    from ..envmap import check_size, resample, resample_memory, resample_strips
     from ..files import check_output
     from ..frames import as_rotation
-    from ..io import WRITE_FORMATS, image_header
+    from ..io import HDR_WRITE_FORMATS, WRITE_FORMATS, image_header, write_image_strips
     from ..layouts import layout as layout_named
 
     if args.dst.suffix.lower() not in WRITE_FORMATS:
@@ -44,9 +45,16 @@ def run(args) -> None:
     rotation = as_rotation(args.rotate) if args.rotate is not None else None
     header = image_header(args.src)
     out_pixels = check_size(target, args.size or target.default_size(header.pixels))
-    env = load(args.src, args.layout, extra_bytes=resample_memory(header.pixels, out_pixels, target)
-               + out_pixels * WRITE_BYTES_PER_PIXEL,
+    streamed = args.dst.suffix.lower() in HDR_WRITE_FORMATS
+    writing = HDR_WRITE_BYTES if streamed else out_pixels * LDR_WRITE_BYTES_PER_PIXEL
+    env = load(args.src, args.layout, extra_bytes=resample_memory(header.pixels, out_pixels, target) + writing,
+               kernels=True,
                what=f"converting {args.src} ({header.width}×{header.height}) to {args.to} ({out_pixels} pixels)")
-    out = resample(env, target, args.size, rotation=rotation)
-    out.save(args.dst, half=args.half, exposure=args.exposure, curve=args.curve, inputs=[args.src])
-    print(f"wrote {args.dst} ({args.to}, size {out.size})")
+    size = args.size or target.default_size(env.valid_pixels)
+    if streamed:  # each strip is written as it is computed
+        shape, strips = resample_strips(env, target, size, rotation=rotation)
+        write_image_strips(args.dst, shape, strips, half=args.half, inputs=[args.src])
+    else:
+        out = resample(env, target, size, rotation=rotation)
+        out.save(args.dst, exposure=args.exposure, curve=args.curve, inputs=[args.src])
+    print(f"wrote {args.dst} ({args.to}, size {size})")

@@ -24,6 +24,6 @@ def run(args) -> None:
     from ..demo import check_report_folder, run_demo
 
     check_report_folder(args.out, args.force)
-    env = load(args.probe, args.layout, working_bytes_per_pixel=400)
+    env = load(args.probe, args.layout, working_bytes_per_pixel=400, kernels=True)
     index = run_demo(env, args.out, probe_name=str(args.probe) if args.probe else None, force=args.force)
     print(f"report: {index}")

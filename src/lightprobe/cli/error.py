@@ -9,7 +9,7 @@ WORKING_BYTES_PER_PIXEL = 96  # the brute-force light samples and the SH project
 
 
 def register(sub) -> None:
-    from ..sh import WINDOWS
+    from ..names import WINDOWS
 
     p = sub.add_parser("error", help="SH irradiance error against brute force",
                        description="Both error measures of SPEC 3 on luminance over uniformly spread normals: the "
@@ -30,7 +30,7 @@ def run(args) -> None:
     from ..sh import WINDOWS, project
 
     orders = args.order  # a list: argparse converts the default through the type too
-    env = load(args.file, args.layout, working_bytes_per_pixel=WORKING_BYTES_PER_PIXEL)
+    env = load(args.file, args.layout, working_bytes_per_pixel=WORKING_BYTES_PER_PIXEL, kernels=True)
     normals = reference_normals(args.normals)
     reference = brute_irradiance(env, normals)
     sh = project(env, max(orders))

@@ -11,9 +11,7 @@ CONTAINERS = ("babylon-env",)
 
 
 def register(sub) -> None:
-    from ..export import GLTF_SCALINGS, TARGETS
-    from ..frames import FRAMES
-    from ..sh import WINDOWS
+    from ..names import EXPORT_TARGETS as TARGETS, FRAMES, GLTF_SCALINGS, WINDOWS
 
     p = sub.add_parser("export", help="lighting for engines (three.js, Filament, Unity, glTF, Babylon, GLSL)",
                        description="Nine SH coefficients converted to an engine's frame, sign convention and "

@@ -12,7 +12,7 @@ INPUT_WORKING_BYTES_PER_PIXEL = 64  # brute force: the map's weighted light samp
 
 
 def register(sub) -> None:
-    from ..sh import WINDOWS
+    from ..names import WINDOWS
 
     p = sub.add_parser("irradiance", help="irradiance map (SH or brute force)",
                        description="Irradiance E (not divided by pi) for every texel direction taken as a surface "

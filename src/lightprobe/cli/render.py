@@ -12,8 +12,7 @@ DEFAULT_SPP = {"sh": 2, "brute": 2, "reference": 256}
 
 
 def register(sub) -> None:
-    from ..render.methods import METHODS
-    from ..sh import WINDOWS
+    from ..names import RENDER_METHODS as METHODS, WINDOWS
 
     p = sub.add_parser("render", help="render a scene or a mesh under a probe (sh, brute, or the Mitsuba reference)",
                        description="Render a scene file (.yaml/.json) or a mesh file (.obj, .ply, .glb, ...; placed on "
@@ -75,7 +74,7 @@ def run(args) -> None:
         from ..render.renderer import render_memory
 
         check_memory(render_memory(*args.size, spp, 0), f"rendering {args.size[0]}x{args.size[1]} at {spp}x{spp} "
-                                                        "samples per pixel")
+                                                        "samples per pixel", kernels=True)
     scene = scene_for(args)  # both renderers check their memory estimate against the budget before they start
     if args.method == "reference":
         from ..render.reference import reference_render

@@ -12,8 +12,7 @@ WORKING_BYTES_PER_PIXEL = 64  # per-pixel directions and solid angles for layout
 
 
 def register(sub) -> None:
-    from ..frames import FRAMES
-    from ..sh import WINDOWS
+    from ..names import FRAMES, WINDOWS
 
     p = sub.add_parser("sh", help="spherical-harmonic coefficients of the lighting (paper Figure 2)",
                        description="Radiance SH coefficients L_lm (real SH without Condon-Shortley phase, flat "

@@ -77,20 +77,42 @@ class EnvMap:
 
     def directions(self) -> np.ndarray:
         """World direction of every pixel centre, ``grid + (3,)`` (read-only; shared by maps of the same grid)."""
-        return pixel_geometry(self.layout, self.grid)[0]
+        return pixel_directions(self.layout, self.grid)
 
     def solid_angles(self) -> np.ndarray:
         """Exact solid angle of every pixel (sr), shape ``grid``; sums to 4π (read-only, shared)."""
-        return pixel_geometry(self.layout, self.grid)[1]
+        return pixel_solid_angles(self.layout, self.grid)
+
+    @property
+    def all_valid(self) -> bool:
+        """True when every pixel covers part of the sphere (latlong, cube): no mask is needed."""
+        return self.layout.valid_fraction == 1.0
 
     def valid_mask(self) -> np.ndarray:
-        return pixel_geometry(self.layout, self.grid)[1] > 0
+        """True for the pixels that cover part of the sphere (read-only; all true for latlong and cube)."""
+        if self.all_valid:
+            return np.broadcast_to(np.True_, self.grid)  # no per-pixel table for a mask that is all true
+        return pixel_solid_angles(self.layout, self.grid) > 0
+
+    @property
+    def valid_pixels(self) -> int:
+        return math.prod(self.grid) if self.all_valid else int(self.valid_mask().sum())
 
     # ---- quantities --------------------------------------------------------------------------------------------
     def integral(self) -> np.ndarray:
-        """∫L dω per channel (radiance × sr), with the exact per-pixel solid angles."""
-        omega = self.solid_angles().astype(np.float64)
-        return omega.reshape(-1) @ self.data.reshape(-1, 3).astype(np.float64)
+        """∫L dω per channel (radiance × sr), with the exact per-pixel solid angles, summed in float64.
+
+        A latlong map's pixels of one row share their solid angle: row sums times row solid angles, with no
+        per-pixel table. Other layouts go in chunks of rows, so no float64 copy of the map is made."""
+        if self.layout.name == "latlong":
+            return self.layout.row_solid_angles(self.grid) @ _row_sums(self.data)
+        omega = self.solid_angles().reshape(-1)
+        px = self.data.reshape(-1, 3)
+        total = np.zeros(3)
+        for start in range(0, len(omega), 1 << 20):
+            chunk = slice(start, start + (1 << 20))
+            total += omega[chunk] @ px[chunk].astype(np.float64)
+        return total
 
     def lookup(self, d: np.ndarray) -> np.ndarray:
         """Radiance arriving from world directions ``d`` (..., 3), bilinear, seam- and pole-correct."""
@@ -102,10 +124,13 @@ class EnvMap:
         from .files import file_shape
         from .pixels import bad_pixel_counts
 
-        valid = self.valid_mask()
-        px = self.data[valid]
-        finite = px[np.isfinite(px).all(axis=1)]
-        counts = bad_pixel_counts(px)
+        px = self.data.reshape(-1, 3) if self.all_valid else self.data[self.valid_mask()]
+        low, high = _channel_min_max(px)  # NaN propagates into both
+        clean = bool((low >= 0).all() and (high < np.inf).all())
+        counts = {"nan": 0, "inf": 0, "negative": 0} if clean else bad_pixel_counts(px)
+        if counts["nan"] + counts["inf"]:  # the rare bad map: set its non-finite pixels aside (a copy)
+            px = px[np.isfinite(px).all(axis=1)]
+            low, high = _channel_min_max(px)
         integral = self.integral().tolist() if counts["nan"] + counts["inf"] == 0 else None
         image_h, image_w = file_shape(self)
         return {
@@ -113,9 +138,9 @@ class EnvMap:
             "height": image_h,
             "layout": self.layout.name,
             "size": self.size,
-            "valid_pixels": int(valid.sum()),
-            "min": finite.min(axis=0).tolist() if len(finite) else None,
-            "max": finite.max(axis=0).tolist() if len(finite) else None,
+            "valid_pixels": self.valid_pixels,
+            "min": low.tolist() if len(px) else None,
+            "max": high.tolist() if len(px) else None,
             "mean": None if integral is None else [v / (4 * math.pi) for v in integral],
             "integral": integral,
             "luminance_integral": None if integral is None else float(luminance(np.array(integral))),
@@ -144,11 +169,53 @@ class EnvMap:
         return write_image(path, to_image(self), **kwargs)
 
 
+_BLOCK = 1 << 20  # values a block of the reductions below handles at once (8 MB as float64)
+
+
+def _row_sums(data: np.ndarray) -> np.ndarray:
+    """Σ over each row of an (H, W, 3) float32 array, in float64: blocks of rows cast and summed by a matrix product
+    (numpy's ``sum(axis=1, dtype=float64)`` is ~8× slower: a strided, casting reduction)."""
+    h, w, _ = data.shape
+    out, ones = np.empty((h, 3)), np.ones(w)
+    rows = max(1, _BLOCK // (3 * w))
+    for top in range(0, h, rows):
+        out[top:top + rows] = ones @ data[top:top + rows].astype(np.float64)
+    return out
+
+
+def _channel_min_max(px: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-channel minimum and maximum of (N, 3) pixels: reduced over the long axis of a (blocks, 3·k) view first
+    (``px.min(axis=0)`` reduces with a stride of 3 and is ~25× slower)."""
+    if len(px) == 0:
+        return np.zeros(3, np.float32), np.zeros(3, np.float32)
+    k = 1 << 12
+    whole = len(px) - len(px) % k
+    view = px[:whole].reshape(-1, 3 * k)
+    parts = [(view.min(axis=0).reshape(-1, 3), view.max(axis=0).reshape(-1, 3))] if whole else []
+    if whole < len(px):
+        parts.append((px[whole:], px[whole:]))
+    low = np.concatenate([p[0] for p in parts]).min(axis=0)
+    high = np.concatenate([p[1] for p in parts]).max(axis=0)
+    return low, high
+
+
 @lru_cache(maxsize=4)
-def pixel_geometry(lay: Layout, grid: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
-    """(directions, solid angles) of a layout's pixel grid, computed once per grid like a renderer's lookup
-    tables; read-only so that no caller can corrupt them for the next."""
-    d, omega = lay.directions(grid), lay.solid_angles(grid)
+def pixel_directions(lay: Layout, grid: tuple[int, ...]) -> np.ndarray:
+    """Directions of a layout's pixel grid (float64, 24 B a pixel), computed once per grid like a renderer's lookup
+    table, and only for work that needs them; read-only so that no caller can corrupt them for the next."""
+    d = lay.directions(grid)
     d.setflags(write=False)
+    return d
+
+
+@lru_cache(maxsize=4)
+def pixel_solid_angles(lay: Layout, grid: tuple[int, ...]) -> np.ndarray:
+    """Solid angles of a layout's pixel grid (float64), cached and read-only like :func:`pixel_directions`."""
+    omega = lay.solid_angles(grid)
     omega.setflags(write=False)
-    return d, omega
+    return omega
+
+
+def pixel_geometry(lay: Layout, grid: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """(directions, solid angles) of a layout's pixel grid."""
+    return pixel_directions(lay, grid), pixel_solid_angles(lay, grid)

@@ -50,7 +50,7 @@ def render(scene: Scene, method: Method, spp: int = 1, tracer: Tracer | None = N
         raise BudgetError(f"refusing the scene: {scene.triangle_count} triangles is over the limit of "
                           f"{max_triangles()} (set LIGHTPROBE_MAX_TRIANGLES to raise it)")
     check_memory(render_memory(scene.camera.width, scene.camera.height, spp, scene.triangle_count), f"rendering {scene.camera.width}x{scene.camera.height} at {spp}x{spp} "
-                                            "samples per pixel")
+                                            "samples per pixel", kernels=True)
     seconds = {}
     t0 = time.perf_counter()
     tracer = tracer or Tracer(scene)
