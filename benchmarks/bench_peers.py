@@ -5,7 +5,8 @@
 
 Every row is a ratio measured in this run: the contenders of a row run in alternating rounds (A, B, A, B, …), each
 round's ratio is taken, and the table gives the best and the median ratio, so a noisy 2-core machine moves both
-sides of a ratio alike. Peers: py360convert (bilinear), skylibs (its default interpolation), a plain numpy
+sides of a ratio alike. lightprobe's conversion is measured twice: direct (one compiled pass) and with its footprint
+weights cached (``Resampler``: built once per geometry, then one gather per map, as a batch runs). Peers: py360convert (bilinear), skylibs (its default interpolation), a plain numpy
 nearest-pixel resampler (float32, per face: one lookup per target pixel), OpenImageIO's own read, imageio,
 ducc0's ``analysis_2d`` and pyshtools' ``SHExpandDH`` (per channel), and ``python -c "import numpy"``.
 A peer that does not import is reported as such, not skipped silently.
@@ -31,7 +32,7 @@ from common import SHARED, require  # sets the environment first
 
 import numpy as np
 
-from lightprobe.envmap import EnvMap, read_envmap, resample
+from lightprobe.envmap import EnvMap, Resampler, auto_samples, read_envmap, resample
 from lightprobe.io import write_image
 from lightprobe.layouts import CUBE, CUBE_FACE_ORDER, CUBE_FACES, LATLONG, _cube_texel_solid_angles
 from lightprobe.sh import project
@@ -101,8 +102,13 @@ def sub_pixel_sun(h: int) -> EnvMap:
 def conversion_rows(big: EnvMap, n_rounds: int) -> list[tuple]:
     src, n = np.ascontiguousarray(big.data), 512
     sun = sub_pixel_sun(big.grid[0])
+    t0 = time.perf_counter()
+    cached = Resampler(LATLONG, big.grid, CUBE, n)  # the footprint weights, once for every map of this grid
+    build = time.perf_counter() - t0
+    print(f"  (lightprobe's cached weights: built once in {1000 * build:.0f} ms, {cached.nbytes / 2**20:.0f} MiB)")
     contenders = {"lightprobe": lambda e: resample(e, CUBE, n).data,
-                  "numpy nearest": lambda e: nearest_cube(np.ascontiguousarray(e.data), n)}
+                  "numpy nearest": lambda e: nearest_cube(np.ascontiguousarray(e.data), n),
+                  "lp cached": lambda e: cached(e).data}
     p360 = peer("py360convert")
     if p360:
         contenders["py360convert"] = lambda e: np.stack(p360.e2c(np.ascontiguousarray(e.data), face_w=n,
@@ -115,9 +121,14 @@ def conversion_rows(big: EnvMap, n_rounds: int) -> list[tuple]:
 
     rows = []
     ours = contenders["lightprobe"]
+    nearest = contenders["numpy nearest"]
     for name, run in contenders.items():
-        t, best, median = rounds(lambda: ours(big), lambda: run(big), n_rounds) if name != "lightprobe" else (
-            min(timed(lambda: ours(big)) for _ in range(n_rounds)), 1.0, 1.0)
+        if name == "lp cached":  # its own row: the cached path against the nearest resampler
+            t, best, median = rounds(lambda: run(big), lambda: nearest(big), n_rounds)
+        elif name == "lightprobe":
+            t, best, median = min(timed(lambda: ours(big)) for _ in range(n_rounds)), 1.0, 1.0
+        else:
+            t, best, median = rounds(lambda: ours(big), lambda: run(big), n_rounds)
         errors = []
         for env in (big, sun):
             out = run(env)
@@ -189,10 +200,13 @@ def sh_rows(big: EnvMap, n_rounds: int) -> list[tuple]:
 def startup_rows(probe: Path, n_rounds: int) -> list[tuple]:
     exe = str(Path(sys.executable).with_name("lightprobe"))
     numpy_import = [sys.executable, "-c", "import numpy"]
+    # "warm": bytecode caches written (a shell with PYTHONDONTWRITEBYTECODE would recompile every module each run)
+    warm_env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
     rows = []
     for argv in (["--help"], ["info", str(probe)], ["sh", str(probe)]):
-        t, best, median = rounds(lambda: subprocess.run([exe, *argv], capture_output=True, check=True),
-                                 lambda: subprocess.run(numpy_import, capture_output=True, check=True), n_rounds)
+        t, best, median = rounds(lambda: subprocess.run([exe, *argv], capture_output=True, check=True, env=warm_env),
+                                 lambda: subprocess.run(numpy_import, capture_output=True, check=True, env=warm_env),
+                                 n_rounds)
         rows.append((f"lightprobe {argv[0]}", 'python -c "import numpy"', t, best, median))
     with tempfile.TemporaryDirectory() as cold:  # the first compile: an empty kernel cache
         env = {**os.environ, "NUMBA_CACHE_DIR": cold}
@@ -216,11 +230,20 @@ def main() -> int:
           "ratio = lightprobe ÷ the other, best / median)\n")
 
     print("latlong 2048×1024 → cube 6×512²")
-    print(f"  {'converter':16s} {'time':>9s} {'lightprobe ÷ it':>17s} {'energy error: Rooitou':>22s} "
+    print(f"  {'converter':26s} {'time':>9s} {'lightprobe ÷ it':>24s} {'energy error: Rooitou':>22s} "
           f"{'sub-pixel sun':>14s}")
     for name, t, best, median, e_sun, e_sub in conversion_rows(big, args.rounds):
         ratio = "—" if name == "lightprobe" else f"{best:.2f} / {median:.2f}×"
-        print(f"  {name:16s} {1000 * t:7.0f}ms {ratio:>17s} {100 * e_sun:21.3f}% {100 * e_sub:13.3f}%")
+        if name == "lp cached":
+            name, ratio = "lightprobe, cached weights", f"÷ nearest: {best:.2f} / {median:.2f}×"
+        print(f"  {name:26s} {1000 * t:7.0f}ms {ratio:>24s} {100 * e_sun:21.3f}% {100 * e_sub:13.3f}%")
+
+    per_pixel = []
+    for n in (256, 512, 1024):  # k is fixed by the 2048×1024 source's pixels per target pixel, so cost ∝ output
+        k = auto_samples(big.valid_pixels / (6 * n * n))
+        t = min(timed(lambda: resample(big, CUBE, n)) for _ in range(args.rounds))
+        per_pixel.append(f"{n}²: {1e9 * t / (6 * n * n * k * k):.0f} ns (k = {k})")
+    print("  time per output pixel and subsample: " + ", ".join(per_pixel))
 
     with tempfile.TemporaryDirectory() as folder:
         groups = [("reading", reading_rows(big, Path(folder), args.rounds)),

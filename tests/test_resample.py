@@ -135,3 +135,73 @@ def test_uniform_maps_stay_exactly_uniform_on_the_compiled_path(source, target):
     valid = lay.valid_mask(out.grid)
     np.testing.assert_array_equal(out.data[valid], 2.5)
     np.testing.assert_array_equal(out.data[~valid], 0.0)
+
+
+SUN_DIRECTIONS = {"cube corner": (1, 1, 1), "cube edge": (1, 0.02, 1), "face centre": (0.01, 0.02, -1),
+                  "near the pole": (0.05, 1, 0.03), "on the seam": (0.0001, 0.3, 1), "oblique": (0.3, -0.6, 0.74)}
+
+
+def _sun_cases():
+    for where in SUN_DIRECTIONS:
+        for target, size in [("cube", 40), ("cube", 96), ("angular", 96), ("sphere", 96), ("latlong", 48),
+                             ("latlong", 160)]:
+            if target == "sphere" and where == "face centre":
+                continue  # straight ahead (−Z) is a mirror ball's rim: one direction smeared over a ring of pixels
+            marks = []
+            if where == "near the pole" and target != "latlong":
+                # a known limit, kept visible (strict: the day it passes, this mark must go): within a few degrees
+                # of a lat-long source's pole, one target pixel spans many source columns, more than its k×k
+                # lookups sample, so a sun one column wide aliases (errors 3–47 % measured). Real suns there
+                # span many columns and are sampled; a fix needs footprints that widen in azimuth near the poles.
+                marks = [pytest.mark.xfail(strict=True, reason="one-column sun near a lat-long pole aliases")]
+            yield pytest.param(where, target, size, marks=marks, id=f"{where}-{target}-{size}")
+
+
+@pytest.mark.parametrize("where, target, size", list(_sun_cases()))
+def test_a_sub_pixel_sun_keeps_its_energy_anywhere(where, target, size):
+    """Issue 9's accuracy bar: a sun in one source pixel (smaller than a target pixel or larger, by the sizes),
+    holding 10× the sky's power, at cube corners and edges, face centres, the seam, oblique — keeps ∫L dω within
+    0.2 %."""
+    h = 128
+    data = np.full((h, 2 * h, 3), 0.05, np.float32)
+    d = np.asarray(SUN_DIRECTIONS[where], float)
+    _, x, y = LATLONG.pixel_coords(d / np.linalg.norm(d), (h, 2 * h))
+    row, col = int(np.clip(np.rint(y), 0, h - 1)), int(np.rint(x)) % (2 * h)
+    data[row, col] += 10 * 0.05 * 4 * np.pi / LATLONG.row_solid_angles((h, 2 * h))[row]
+    src = EnvMap(data, LATLONG)
+    out = src.to(target, size)
+    np.testing.assert_allclose(out.integral(), src.integral(), rtol=2e-3)
+
+
+# ---- cached footprint weights (Resampler) -------------------------------------------------------------------------
+@pytest.mark.parametrize("turn", [None, TURN], ids=["fixed", "turned"])
+@pytest.mark.parametrize("target", list(TARGETS))
+@pytest.mark.parametrize("source", SOURCES + ("cross",))
+def test_cached_weights_equal_the_direct_path(sources, source, target, turn):
+    """Issue 9: the weights computed once and applied as one gather give what the direct kernel computes, to float32
+    rounding (1e-6 of the maximum: the sums are regrouped), for every source × target × rotation."""
+    from lightprobe.envmap import Resampler, resample
+
+    src = sources[source] if source != "cross" else sources["cube"].to("cross", 16)
+    lay = TARGETS[target]
+    cached = Resampler(src.layout, src.grid, lay, 20, rotation=turn)
+    assert cached.nbytes > 0
+    want = resample(src, lay, 20, rotation=turn).data
+    got = cached(src).data
+    assert got.shape == want.shape and cached(src).layout == lay
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-6 * float(want.max()))
+    other = EnvMap(np.ascontiguousarray(src.data[::-1]), src.layout) if src.layout.faces == 1 else src
+    np.testing.assert_allclose(cached(other).data, resample(other, lay, 20, rotation=turn).data, rtol=0,
+                               atol=1e-6 * float(want.max()))  # the same weights serve any map of the grid
+
+
+def test_a_resampler_refuses_other_maps_and_does_not_cache_box_reductions(sources):
+    from lightprobe.envmap import Resampler, resample
+    from lightprobe.errors import LayoutError
+
+    src = sources["latlong"]
+    with pytest.raises(LayoutError, match="converts latlong maps of grid"):
+        Resampler(src.layout, src.grid, CUBE, 8)(sources["angular"])
+    tiny = Resampler(src.layout, src.grid, CUBE, 2)  # 2048 source pixels for 24: box-reduced first, not cached
+    assert tiny.nbytes == 0
+    np.testing.assert_array_equal(tiny(src).data, resample(src, CUBE, 2).data)

@@ -23,7 +23,7 @@ from .errors import InputError, LayoutError, LightprobeError, LightprobeWarning 
 # Everything below loads on first use (PEP 562), so `import lightprobe` stays light: no numba, no OpenImageIO, no
 # trimesh until a function that needs them runs. Name → module it lives in.
 _LAZY = {
-    "EnvMap": "envmap", "read_envmap": "envmap", "resample": "envmap",
+    "EnvMap": "envmap", "read_envmap": "envmap", "resample": "envmap", "Resampler": "envmap",
     "WORLD": "frames", "RH2001": "frames", "rotation_from_ypr": "frames", "frame": "frames",
     "LAYOUTS": "layouts", "layout": "layouts", "detect_layout": "layouts",
     "SHCoeffs": "sh", "project": "sh",

@@ -257,6 +257,37 @@ def _source_row_col(row, col, h, w):  # pragma: no cover - compiled
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def _tile_bounds(pxs, pys, n, pad):  # pragma: no cover - compiled
+    """(first column, first row, width, height) of the taps of n subsamples, in an image padded by ``pad``."""
+    x0, y0 = math.floor(pxs[0]), math.floor(pys[0])
+    x1, y1 = x0, y0
+    for s in range(1, n):
+        x0, x1 = min(x0, math.floor(pxs[s])), max(x1, math.floor(pxs[s]))
+        y0, y1 = min(y0, math.floor(pys[s])), max(y1, math.floor(pys[s]))
+    return int(x0) - 1 + pad, int(y0) - 1 + pad, int(x1 - x0) + 4, int(y1 - y0) + 4
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _sum_into_tile(tile, pxs, pys, pws, n, scale, c0, r0, tw, th, pad):  # pragma: no cover - compiled
+    """tile[:th, :tw] = Σ_s scale·pws[s] · (subsample s's 4×4 B-spline taps), the tile's corner at (c0, r0)."""
+    for ty in range(th):
+        for tx in range(tw):
+            tile[ty, tx] = 0.0
+    for s in range(n):  # the weights as scalars, not arrays: this loop is half the kernel's time
+        fx, fy = math.floor(pxs[s]), math.floor(pys[s])
+        ox, oy = int(fx) - 1 + pad - c0, int(fy) - 1 + pad - r0
+        a0, a1, a2, a3 = _bspline4(pxs[s] - fx)
+        b0, b1, b2, b3 = _bspline4(pys[s] - fy)
+        p = scale * pws[s]
+        for dy in range(4):
+            wrow = p * (b0 if dy == 0 else b1 if dy == 1 else b2 if dy == 2 else b3)
+            tile[oy + dy, ox] += wrow * a0
+            tile[oy + dy, ox + 1] += wrow * a1
+            tile[oy + dy, ox + 2] += wrow * a2
+            tile[oy + dy, ox + 3] += wrow * a3
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def _footprint(src, face, padded, pxs, pys, pws, n, tile, acc):  # pragma: no cover - compiled
     """Σ_s pws[s] · (B-spline lookup at (pxs[s], pys[s])) for one target pixel's n subsamples on source face
     ``face``, added to ``acc``. ``src`` is an unpadded latlong image (``padded`` False: taps past a pole or the seam
@@ -266,35 +297,15 @@ def _footprint(src, face, padded, pxs, pys, pws, n, tile, acc):  # pragma: no co
     read once (a k = 3 footprint reads ~25 taps instead of 144). Returns False, touching nothing, when the taps
     span more than TILE × TILE (near a latlong's poles and seam) or leave the padded image, for the caller to look
     up directly."""
-    x0, y0 = math.floor(pxs[0]), math.floor(pys[0])
-    x1, y1 = x0, y0
-    for s in range(1, n):
-        x0, x1 = min(x0, math.floor(pxs[s])), max(x1, math.floor(pxs[s]))
-        y0, y1 = min(y0, math.floor(pys[s])), max(y1, math.floor(pys[s]))
-    tw, th = int(x1 - x0) + 4, int(y1 - y0) + 4
+    pad = 2 if padded else 0
+    c0, r0, tw, th = _tile_bounds(pxs, pys, n, pad)
     if tw > TILE or th > TILE:
         return False
-    pad = 2 if padded else 0
-    c0, r0 = int(x0) - 1 + pad, int(y0) - 1 + pad
     h, w = src.shape[1], src.shape[2]
     inside = r0 >= 0 and r0 + th <= h and c0 >= 0 and c0 + tw <= w
     if padded and not inside:
         return False
-    for ty in range(th):
-        for tx in range(tw):
-            tile[ty, tx] = 0.0
-    for s in range(n):  # the weights as scalars, not arrays: this loop is half the kernel's time
-        fx, fy = math.floor(pxs[s]), math.floor(pys[s])
-        ox, oy = int(fx) - 1 + pad - c0, int(fy) - 1 + pad - r0
-        a0, a1, a2, a3 = _bspline4(pxs[s] - fx)
-        b0, b1, b2, b3 = _bspline4(pys[s] - fy)
-        p = pws[s]
-        for dy in range(4):
-            wrow = p * (b0 if dy == 0 else b1 if dy == 1 else b2 if dy == 2 else b3)
-            tile[oy + dy, ox] += wrow * a0
-            tile[oy + dy, ox + 1] += wrow * a1
-            tile[oy + dy, ox + 2] += wrow * a2
-            tile[oy + dy, ox + 3] += wrow * a3
+    _sum_into_tile(tile, pxs, pys, pws, n, 1.0, c0, r0, tw, th, pad)
     r, g, b = 0.0, 0.0, 0.0
     if inside:
         for ty in range(th):
@@ -333,6 +344,35 @@ def _lookup(src_kind, src, valid, face, px, py, wx, wy, acc):  # pragma: no cove
         _lookup_padded(src, valid, face, px, py, wx, wy, acc)
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, k, rotation, src_kind, src_axes, src_h, src_w,
+                pfs, pxs, pys, pws):  # pragma: no cover - compiled
+    """One target pixel's k×k subsamples: their source positions (pfs, pxs, pys) and weights ``dω/(du dv)``
+    (pws), those off a disc left out; returns (count, Σ weights). A disc's rim pixel with every subsample off the
+    disc gets its centre's (rim) direction, weight 1."""
+    n, wsum = 0, 0.0
+    for i in range(k * k + 1):
+        if i < k * k:
+            u, v = (col + (i % k + 0.5) / k) / w, (row + (i // k + 0.5) / k) / h
+        elif n == 0:
+            u, v = (col + 0.5) / w, (row + 0.5) / h
+        else:
+            break
+        x, y, z, weight = target_direction(tgt_kind, tgt_axes, face, u, v)
+        if i == k * k:
+            weight = 1.0
+        if weight <= 0.0:
+            continue
+        rx = x * rotation[0, 0] + y * rotation[1, 0] + z * rotation[2, 0]  # d @ R
+        ry = x * rotation[0, 1] + y * rotation[1, 1] + z * rotation[2, 1]
+        rz = x * rotation[0, 2] + y * rotation[1, 2] + z * rotation[2, 2]
+        pfs[n], pxs[n], pys[n] = source_position(src_kind, src_axes, rx, ry, rz, src_h, src_w)
+        pws[n] = weight
+        wsum += weight
+        n += 1
+    return n, wsum
+
+
 @njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})
 def resample_into(src_kind, src, valid, src_axes, src_h, src_w, tgt_kind, tgt_axes, tgt_h, tgt_valid, all_valid,
                   k, rotation, out, first):  # pragma: no cover - compiled
@@ -358,26 +398,8 @@ def resample_into(src_kind, src, valid, src_axes, src_h, src_w, tgt_kind, tgt_ax
                 for c in range(3):
                     out[line - first, col, c] = 0.0
                 continue
-            n, wsum = 0, 0.0
-            for i in range(k * k + 1):
-                if i < k * k:  # the k×k subsamples
-                    u, v = (col + (i % k + 0.5) / k) / w, (row + (i // k + 0.5) / k) / h
-                elif n == 0:  # a disc's rim pixel with every subsample off the disc: its centre's (rim) direction
-                    u, v = (col + 0.5) / w, (row + 0.5) / h
-                else:
-                    break
-                x, y, z, weight = target_direction(tgt_kind, tgt_axes, face, u, v)
-                if i == k * k:
-                    weight = 1.0
-                if weight <= 0.0:
-                    continue
-                rx = x * rotation[0, 0] + y * rotation[1, 0] + z * rotation[2, 0]  # d @ R
-                ry = x * rotation[0, 1] + y * rotation[1, 1] + z * rotation[2, 1]
-                rz = x * rotation[0, 2] + y * rotation[1, 2] + z * rotation[2, 2]
-                pfs[n], pxs[n], pys[n] = source_position(src_kind, src_axes, rx, ry, rz, src_h, src_w)
-                pws[n] = weight
-                wsum += weight
-                n += 1
+            n, wsum = _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, k, rotation, src_kind, src_axes,
+                                  src_h, src_w, pfs, pxs, pys, pws)
             acc[0], acc[1], acc[2] = 0.0, 0.0, 0.0
             if not (tiled and _same_face(pfs, n)
                     and _footprint(src, pfs[0], src_kind != LATLONG, pxs, pys, pws, n, tile, acc)):
@@ -388,3 +410,106 @@ def resample_into(src_kind, src, valid, src_axes, src_h, src_w, tgt_kind, tgt_ax
                         acc[c] += pws[s] * value[c]
             for c in range(3):
                 out[line - first, col, c] = acc[c] / wsum
+
+
+# ---- cached footprint weights ---------------------------------------------------------------------------------------
+# The resampled map is linear in the source: each target pixel is Σ_j w_j · source[i_j] over its footprint's taps.
+# For many maps of one geometry (a batch), the taps are computed once (footprint_taps) and each map is then one
+# gather (apply_taps): the direct kernel's geometry and B-spline weights are not recomputed per map.
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _latlong_index(row, col, h, w):  # pragma: no cover - compiled
+    """Flat pixel index of a latlong tap that may lie past a pole or the seam."""
+    row, col = _source_row_col(row, col, h, w)
+    return row * w + col
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})
+def footprint_taps(src_kind, src_shape, valid, index_map, src_axes, src_h, src_w, tgt_kind, tgt_axes, tgt_h, tgt_w,
+                   tgt_valid, all_valid, k, rotation, first, idx, wts, counts):  # pragma: no cover - compiled
+    """The taps of target lines ``first`` … (one row of ``idx``/``wts``, (n_pixels, max_taps), per target pixel of
+    the lines, row-major): source pixel indices (flat over the unpadded source grid) and weights whose sum over a
+    pixel's taps reproduces :func:`resample_into` for any source values. ``src_shape`` is the shape of the image
+    resample_into reads (unpadded latlong, or padded); ``index_map`` gives, for a padded image, the flat source
+    index of every padded texel. Taps of one footprint tile are merged; a pixel looked up subsample by subsample
+    lists its 16 taps per subsample (the apply sums repeats). ``counts`` gets each pixel's number of taps."""
+    h, w = tgt_h, tgt_w
+    n_lines = counts.shape[0] // w
+    tiled = src_kind == LATLONG or src_kind == CUBE
+    pfs, pxs, pys, pws = (np.empty(k * k + 1, np.int64), np.empty(k * k + 1), np.empty(k * k + 1),
+                          np.empty(k * k + 1))
+    tile = np.empty((TILE, TILE))
+    wx, wy = np.empty(4), np.empty(4)
+    for line in range(first, first + n_lines):
+        face, row = line // h, line % h
+        for col in range(w):
+            p = (line - first) * w + col
+            counts[p] = 0
+            if not all_valid and tgt_valid[face, row, col] == 0:
+                continue
+            n, wsum = _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, k, rotation, src_kind, src_axes,
+                                  src_h, src_w, pfs, pxs, pys, pws)
+            t = 0
+            if tiled and _same_face(pfs, n):
+                pad = 0 if src_kind == LATLONG else 2
+                c0, r0, tw, th = _tile_bounds(pxs, pys, n, pad)
+                ok = tw <= TILE and th <= TILE
+                if ok and pad:
+                    ok = r0 >= 0 and r0 + th <= src_shape[1] and c0 >= 0 and c0 + tw <= src_shape[2]
+                if ok:
+                    _sum_into_tile(tile, pxs, pys, pws, n, 1.0 / wsum, c0, r0, tw, th, pad)
+                    for ty in range(th):
+                        for tx in range(tw):
+                            if tile[ty, tx] != 0.0:
+                                if pad:
+                                    idx[p, t] = index_map[pfs[0], r0 + ty, c0 + tx]
+                                else:
+                                    idx[p, t] = _latlong_index(r0 + ty, c0 + tx, src_h, src_w)
+                                wts[p, t] = tile[ty, tx]
+                                t += 1
+                    counts[p] = t
+                    continue
+            for s in range(n):  # subsample by subsample, as _lookup does
+                fx, fy = math.floor(pxs[s]), math.floor(pys[s])
+                _bspline_weights(pxs[s] - fx, wx)
+                _bspline_weights(pys[s] - fy, wy)
+                q = pws[s] / wsum
+                if src_kind == LATLONG:
+                    for dy in range(4):
+                        for dx in range(4):
+                            idx[p, t] = _latlong_index(int(fy) - 1 + dy, int(fx) - 1 + dx, src_h, src_w)
+                            wts[p, t] = q * wy[dy] * wx[dx]
+                            t += 1
+                else:
+                    x0 = min(max(int(fx) + 1, 0), src_shape[2] - 4)  # padded: + 2, − 1 for the first tap
+                    y0 = min(max(int(fy) + 1, 0), src_shape[1] - 4)
+                    f = pfs[s]
+                    total = 0.0
+                    for dy in range(4):
+                        for dx in range(4):
+                            total += wy[dy] * wx[dx] * (1.0 if valid.shape[1] == 1 else valid[f, y0 + dy, x0 + dx])
+                    for dy in range(4):
+                        for dx in range(4):
+                            kk = wy[dy] * wx[dx] * (1.0 if valid.shape[1] == 1 else valid[f, y0 + dy, x0 + dx])
+                            if kk > 0.0:
+                                idx[p, t] = index_map[f, y0 + dy, x0 + dx]
+                                wts[p, t] = q * kk / total
+                                t += 1
+            counts[p] = t
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})
+def apply_taps(src, offsets, idx, wts, out, first):  # pragma: no cover - compiled
+    """out[p − first] = Σ_j wts[j] · src[idx[j]] for pixels p = first … first + len(out) − 1 (CSR ``offsets``);
+    ``src`` is the source flattened to (pixels, 3)."""
+    for p in range(first, first + out.shape[0]):
+        r, g, b = 0.0, 0.0, 0.0
+        for j in range(offsets[p], offsets[p + 1]):
+            q = wts[j]
+            i = idx[j]
+            r += q * src[i, 0]
+            g += q * src[i, 1]
+            b += q * src[i, 2]
+        out[p - first, 0] = r
+        out[p - first, 1] = g
+        out[p - first, 2] = b

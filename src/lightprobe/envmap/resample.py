@@ -204,6 +204,118 @@ def _fused_resample(source: EnvMap, target: Layout, grid: tuple[int, ...], k: in
     return plan.finish(out)
 
 
+class Resampler:
+    """One conversion's footprint weights, computed once, applied to many maps of the same geometry (a batch).
+
+    ``Resampler(layout, grid, target, size)`` computes, for every target pixel, the source taps and weights that
+    :func:`resample` would sum for it (its k×k subsamples' B-spline taps, merged); calling it on a map of that
+    layout and grid is then one gather per pixel — the same values as :func:`resample` to float32 rounding
+    (``tests/test_resample.py``), several times faster. The weights take ~8 bytes per tap, ~25 taps per target
+    pixel at k = 3 (:attr:`nbytes`; refused over the memory budget). Conversions that box-reduce the source first
+    (over 16 source pixels per target pixel) are not cached: calling such a Resampler resamples directly."""
+
+    def __init__(self, layout: str | Layout, grid: tuple[int, ...], target: str | Layout, size: int | None = None, *,
+                 rotation: np.ndarray | None = None, samples: int | None = None):
+        from ..layouts import layout as layout_named
+
+        self.layout, self.grid, self.target = layout_named(layout), tuple(grid), layout_named(target)
+        self.rotation, self.samples = rotation, samples
+        target = self.target
+        self.layout.check_grid(self.grid)
+        source_layout = CUBE if isinstance(self.layout, Cross) else self.layout
+        source_grid = CUBE.grid_shape(self.layout.size_of(self.grid)) if isinstance(self.layout, Cross) else grid
+        pixels = math.prod(source_grid) if source_layout.valid_fraction == 1.0 else int(
+            source_layout.valid_mask(source_grid).sum())
+        self.size = size or target.default_size(pixels)
+        out_pixels = check_size(target, self.size)
+        out_grid = target.grid_shape(self.size)
+        reduced = samples is None and pixels / max(out_pixels * target.valid_fraction, 1) > MAX_FOOTPRINT_RATIO
+        self.offsets = None
+        if reduced or fused.CODES.get(source_layout.name) is None or fused.CODES.get(
+                _face_layout(target).name) is None:
+            return  # not cached: __call__ resamples directly
+        k = samples or auto_samples(pixels / max(out_pixels * target.valid_fraction, 1))
+        if samples is None:
+            target_pixels = math.prod(out_grid) if target.valid_fraction == 1.0 else int(
+                target.valid_mask(out_grid).sum())
+            k = auto_samples(pixels / max(target_pixels, 1))
+        self._build(source_layout, source_grid, out_grid, k)
+
+    @property
+    def nbytes(self) -> int:
+        return 0 if self.offsets is None else self.offsets.nbytes + self.idx.nbytes + self.wts.nbytes
+
+    def _build(self, source_layout: Layout, source_grid, out_grid, k: int) -> None:
+        filled = _face_layout(self.target)
+        grid = filled.grid_shape(self.target.size_of(out_grid))
+        faces = grid if filled.faces > 1 else (1,) + grid
+        lines, w = faces[0] * faces[1], faces[2]
+        max_taps = max(TILE_TAPS, 16 * (k * k + 1))
+        check_memory(lines * w * (25 * 8 + 8) + min(lines, 64) * w * max_taps * 8,
+                     f"footprint weights of {self.layout.name} → {self.target.name} size {self.size}", kernels=True)
+        src_kind = fused.CODES[source_layout.name]
+        if src_kind == fused.LATLONG:
+            src_shape, valid = (1,) + tuple(source_grid) + (3,), np.ones((1, 1, 1), np.float32)
+            index_map = np.zeros((1, 1, 1), np.int32)
+        else:
+            flat = np.arange(math.prod(source_grid), dtype=np.int32).reshape(source_grid)[..., None]
+            padded_index, valid = source_layout.padded(flat.astype(np.float64))  # padding is exact for integers
+            index_map = np.rint(padded_index[..., 0]).astype(np.int32)
+            src_shape = padded_index.shape
+            if source_layout.valid_fraction == 1.0:
+                valid = np.ones((1, 1, 1), np.float32)
+        all_valid = filled.valid_fraction == 1.0
+        tgt_valid = (np.ones((1, 1, 1), np.uint8) if all_valid
+                     else filled.valid_mask(grid).reshape(faces).astype(np.uint8))
+        turn = np.eye(3) if self.rotation is None else np.asarray(self.rotation, dtype=np.float64)
+        band = 16
+        parts = []
+
+        def taps(first: int):
+            n = min(band, lines - first)
+            idx, wts = np.empty((n * w, max_taps), np.int32), np.empty((n * w, max_taps), np.float32)
+            counts = np.empty(n * w, np.int64)
+            fused.footprint_taps(src_kind, src_shape, valid, index_map, _axes(source_layout), source_grid[-2],
+                                 source_grid[-1], fused.CODES[filled.name], _axes(filled), faces[1], w, tgt_valid,
+                                 all_valid, k, turn, first, idx, wts, counts)
+            keep = np.arange(max_taps)[None, :] < counts[:, None]
+            return counts, idx[keep], wts[keep]
+
+        with ThreadPoolExecutor(limits.threads()) as pool:
+            parts = list(track(pool.map(taps, range(0, lines, band)), f"footprint weights for {self.target.name}",
+                               total=-(-lines // band)))
+        counts = np.concatenate([c for c, _, _ in parts])
+        self.offsets = np.zeros(len(counts) + 1, np.int64)
+        np.cumsum(counts, out=self.offsets[1:])
+        self.idx = np.concatenate([i for _, i, _ in parts])
+        self.wts = np.concatenate([q for _, _, q in parts])
+        self._filled_grid, self._lines = grid, (lines, w)
+
+    def __call__(self, env: EnvMap) -> EnvMap:
+        if env.layout != self.layout or env.grid != self.grid:
+            raise LayoutError(f"this Resampler converts {self.layout.name} maps of grid {self.grid}, "
+                              f"not {env.layout.name} {env.grid}")
+        if self.offsets is None:
+            return resample(env, self.target, self.size, rotation=self.rotation, samples=self.samples)
+        data = self.layout.to_cube(env.data) if isinstance(self.layout, Cross) else env.data
+        src = np.ascontiguousarray(data).reshape(-1, 3)
+        lines, w = self._lines
+        out = np.empty((lines * w, 3), np.float32)
+        pixels = lines * w
+        threads = min(limits.threads(), max(1, pixels // 4096))
+        step = -(-pixels // (4 * threads))
+        with ThreadPoolExecutor(threads) as pool:
+            list(pool.map(lambda s: fused.apply_taps(src, self.offsets, self.idx, self.wts, out[s:s + step], s),
+                          range(0, pixels, step)))
+        out = out.reshape(self._filled_grid + (3,))
+        if isinstance(self.target, Cross):
+            out = self.target.from_cube(out)
+        return EnvMap(owned(out), self.target)
+
+
+TILE_TAPS = fused.TILE * fused.TILE
+
+
 def _axes(lay: Layout) -> np.ndarray:
     return np.asarray(getattr(lay, "camera_axes", np.eye(3)), dtype=np.float64)
 
