@@ -372,8 +372,6 @@ def write_image(
     if ext in LDR_WRITE_FORMATS:
         display = np.clip(np.nan_to_num(rgb), 0, 1) if encoded else tonemap(rgb, exposure, curve)
         return write_bytes(path, _encode_ldr(path, display), inputs)
-    if half and ext == ".exr":
-        _check_half(path, rgb)  # before anything is written
     rows = max(1, _STRIP_BYTES // max(1, 12 * rgb.shape[1]))
     return write_image_strips(path, rgb.shape[:2], _array_strips(rgb, rows), half=half, inputs=inputs)
     return path

@@ -20,10 +20,14 @@ _CHUNK_SAMPLES = 1 << 18  # direction lookups per chunk of a resampling pass (bo
 MAX_FOOTPRINT_RATIO = 16  # source pixels per target pixel above which the source is box-reduced first
 
 
+def _valid_pixels(lay: Layout, grid: tuple[int, ...]) -> int:
+    """Pixels of ``grid`` that cover the sphere (no mask is made for layouts whose pixels all do)."""
+    return math.prod(grid) if lay.valid_fraction == 1.0 else int(lay.valid_mask(grid).sum())
+
+
 def _valid_ratio(source: EnvMap, target: Layout, grid: tuple[int, ...]) -> float:
     """Valid source pixels per valid target pixel."""
-    target_pixels = math.prod(grid) if target.valid_fraction == 1.0 else int(target.valid_mask(grid).sum())
-    return source.valid_pixels / max(target_pixels, 1)
+    return source.valid_pixels / max(_valid_pixels(target, grid), 1)
 
 
 def auto_samples(ratio: float) -> int:
@@ -224,22 +228,16 @@ class Resampler:
         self.layout.check_grid(self.grid)
         source_layout = CUBE if isinstance(self.layout, Cross) else self.layout
         source_grid = CUBE.grid_shape(self.layout.size_of(self.grid)) if isinstance(self.layout, Cross) else grid
-        pixels = math.prod(source_grid) if source_layout.valid_fraction == 1.0 else int(
-            source_layout.valid_mask(source_grid).sum())
+        pixels = _valid_pixels(source_layout, source_grid)
         self.size = size or target.default_size(pixels)
-        out_pixels = check_size(target, self.size)
+        check_size(target, self.size)
         out_grid = target.grid_shape(self.size)
-        reduced = samples is None and pixels / max(out_pixels * target.valid_fraction, 1) > MAX_FOOTPRINT_RATIO
+        ratio = pixels / max(_valid_pixels(target, out_grid), 1)  # as resample's _valid_ratio measures it
         self.offsets = None
-        if reduced or fused.CODES.get(source_layout.name) is None or fused.CODES.get(
-                _face_layout(target).name) is None:
+        if (samples is None and ratio > MAX_FOOTPRINT_RATIO) or fused.CODES.get(source_layout.name) is None \
+                or fused.CODES.get(_face_layout(target).name) is None:
             return  # not cached: __call__ resamples directly
-        k = samples or auto_samples(pixels / max(out_pixels * target.valid_fraction, 1))
-        if samples is None:
-            target_pixels = math.prod(out_grid) if target.valid_fraction == 1.0 else int(
-                target.valid_mask(out_grid).sum())
-            k = auto_samples(pixels / max(target_pixels, 1))
-        self._build(source_layout, source_grid, out_grid, k)
+        self._build(source_layout, source_grid, out_grid, samples or auto_samples(ratio))
 
     @property
     def nbytes(self) -> int:
