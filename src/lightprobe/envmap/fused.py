@@ -183,33 +183,45 @@ def _bspline4(t):  # pragma: no cover - compiled
     return w0, w1, 1.0 - w0 - w1 - w3, w3
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _reflected_row(row, h):  # pragma: no cover - compiled
+    """A latlong row that may lie past a pole → (the row that holds it, whether it is half a turn round)."""
+    if row < 0:  # past the north pole: row −1 − row, half a turn round
+        return min(-1 - row, h - 1), True
+    if row >= h:
+        return max(2 * h - 1 - row, 0), True
+    return row, False
+
+
 @njit(cache=True, error_model="numpy")
-def _lookup_latlong(src, x, y, wx, wy, acc):  # pragma: no cover - compiled
-    """B-spline lookup of an unpadded latlong image (1, H, W, 3) at pixel coordinates (x, y), added to ``acc``."""
+def _lookup_latlong(src, levels, reduced, offsets, x, y, wx, wy, acc):  # pragma: no cover - compiled
+    """B-spline lookup of an unpadded latlong image (1, H, W, 3) at pixel coordinates (x, y), added to ``acc``.
+
+    Row r of level ``levels[r]`` = ℓ > 0 is read from its azimuthal box reduction (``reduced[offsets[r]:]``,
+    W / 2^ℓ pixels of 2^ℓ columns each; see :func:`lightprobe.envmap.polar.reduced_rows`), at its own column
+    coordinate (x + ½) / 2^ℓ − ½: each row is interpolated on its own grid, with the rows' weights in y as ever."""
     h, w = src.shape[1], src.shape[2]
-    fx, fy = math.floor(x), math.floor(y)
-    _bspline_weights(x - fx, wx)
+    fy = math.floor(y)
     _bspline_weights(y - fy, wy)
-    c0, r0 = int(fx) - 1, int(fy) - 1
-    half = w // 2
+    r0 = int(fy) - 1
     for dy in range(4):
-        row, shift = r0 + dy, 0
-        if row < 0:  # past the north pole: row −1 − row, half a turn round
-            row, shift = -1 - row, half
-        elif row >= h:
-            row, shift = 2 * h - 1 - row, half
-        row = min(max(row, 0), h - 1)
+        row, level, width, shift = _row_frame(levels, h, w, r0 + dy)
+        xr = _in_frame(x, level, shift)
+        fx = math.floor(xr)
+        _bspline_weights(xr - fx, wx)
+        c0 = int(fx) - 1
         r, g, b = 0.0, 0.0, 0.0
         for dx in range(4):
-            col = c0 + dx + shift  # in [−2, 1.5 W + 2): one wrap brings it into [0, W) (no integer modulo: slow)
-            if col < 0:
-                col += w
-            elif col >= w:
-                col -= w
-            col = min(max(col, 0), w - 1)
-            r += wx[dx] * src[0, row, col, 0]
-            g += wx[dx] * src[0, row, col, 1]
-            b += wx[dx] * src[0, row, col, 2]
+            col = _wrapped_column(c0 + dx, width)
+            if level == 0:
+                r += wx[dx] * src[0, row, col, 0]
+                g += wx[dx] * src[0, row, col, 1]
+                b += wx[dx] * src[0, row, col, 2]
+            else:
+                i = offsets[row] + col
+                r += wx[dx] * reduced[i, 0]
+                g += wx[dx] * reduced[i, 1]
+                b += wx[dx] * reduced[i, 2]
         acc[0] += wy[dy] * r
         acc[1] += wy[dy] * g
         acc[2] += wy[dy] * b
@@ -288,7 +300,160 @@ def _sum_into_tile(tile, pxs, pys, pws, n, scale, c0, r0, tw, th, pad):  # pragm
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _footprint(src, face, padded, pxs, pys, pws, n, tile, acc):  # pragma: no cover - compiled
+def _in_frame(x, level, shift):  # pragma: no cover - compiled
+    """Source column coordinate x (column c's centre at c) in a row's frame: its reduction level (a frame column
+    is 2^ℓ source columns) and half-turn shift."""
+    if level == 0:
+        return x + shift
+    return (x + 0.5) / (1 << level) - 0.5 + shift
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _row_frame(levels, h, w, row):  # pragma: no cover - compiled
+    """Tile row ``row`` of a latlong (past a pole or not) → (source row, its level, its width, column shift: half
+    its width when the row is reached across the pole)."""
+    src_row, turned = _reflected_row(row, h)
+    level = levels[src_row]
+    width = w >> level
+    return src_row, level, width, width // 2 if turned else 0
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _row_tile(levels, h, w, pxs, pys, pws, n, scale, r0, th, tile, c0s, tws, taps):  # pragma: no cover - compiled
+    """:func:`_sum_into_tile` for latlong tiles whose rows may each have their own column frame — a reduction
+    level (its columns are 2^ℓ source columns) or a half-turn shift (a row reached across the pole): tile row ty
+    holds its row's taps from column c0s[ty] of that row's frame, tws[ty] of them. ``taps`` (n, 4, 2) is scratch:
+    each subsample's first column and fraction in each of its four rows' frames. False if a row's taps span over
+    TILE columns."""
+    for ty in range(th):
+        c0s[ty], tws[ty] = 1 << 62, -(1 << 62)  # lowest and highest first column, until the end
+    for s in range(n):
+        fy = int(math.floor(pys[s]))
+        last_level, last_shift, q = -1, -1, 0.0
+        for dy in range(4):
+            ty = fy - 1 + dy - r0
+            _, level, _, shift = _row_frame(levels, h, w, fy - 1 + dy)
+            if level != last_level or shift != last_shift:  # most rows share their neighbour's frame
+                q = _in_frame(pxs[s], level, shift)
+                last_level, last_shift = level, shift
+            fx = math.floor(q)
+            taps[s, dy, 0], taps[s, dy, 1] = fx, q - fx
+            c0s[ty], tws[ty] = min(c0s[ty], int(fx)), max(tws[ty], int(fx))
+    for ty in range(th):
+        if tws[ty] < c0s[ty]:  # a row no subsample reaches (cannot happen: each row is some subsample's)
+            c0s[ty], tws[ty] = 0, 0
+            continue
+        width = tws[ty] - c0s[ty] + 4
+        if width > TILE:
+            return False
+        c0s[ty], tws[ty] = c0s[ty] - 1, width
+        for tx in range(width):
+            tile[ty, tx] = 0.0
+    for s in range(n):
+        fy = math.floor(pys[s])
+        b0, b1, b2, b3 = _bspline4(pys[s] - fy)
+        p = scale * pws[s]
+        for dy in range(4):
+            ty = int(fy) - 1 + dy - r0
+            a0, a1, a2, a3 = _bspline4(taps[s, dy, 1])
+            ox = int(taps[s, dy, 0]) - 1 - c0s[ty]
+            wrow = p * (b0 if dy == 0 else b1 if dy == 1 else b2 if dy == 2 else b3)
+            tile[ty, ox] += wrow * a0
+            tile[ty, ox + 1] += wrow * a1
+            tile[ty, ox + 2] += wrow * a2
+            tile[ty, ox + 3] += wrow * a3
+    return True
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _wrapped_column(col, width):  # pragma: no cover - compiled
+    """A column at most one turn out of [0, width) brought into it (an integer modulo costs more)."""
+    if col < 0:
+        col += width
+    elif col >= width:
+        col -= width
+    return min(max(col, 0), width - 1)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _shared_level(levels, r0, th, h):  # pragma: no cover - compiled
+    """The reduction level of latlong rows r0 … r0 + th − 1 when they all have it and none is past a pole, else −1."""
+    if r0 < 0 or r0 + th > h:
+        return -1
+    level = levels[r0]
+    for row in range(r0 + 1, r0 + th):
+        if levels[row] != level:
+            return -1
+    return level
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _polar_scratch(k):  # pragma: no cover - compiled
+    """Scratch arrays for :func:`_row_tile`: each tile row's first column and width, each subsample's taps, and
+    the subsamples' columns in a shared reduced frame."""
+    return np.empty(TILE, np.int64), np.empty(TILE, np.int64), np.empty((k * k + 1, 4, 2)), np.empty(k * k + 1)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _polar_tile(levels, h, w, pxs, pys, pws, n, scale, scratch, tile):  # pragma: no cover - compiled
+    """The tile of a latlong footprint near the poles: (first row, rows), rows 0 if it outgrows TILE. Where all
+    its rows share one frame (most footprints) it is summed as off the caps, in that frame; else row by row
+    (:func:`_row_tile`). Each tile row's first column and width are left in ``scratch``."""
+    fy0, fy1 = math.floor(pys[0]), math.floor(pys[0])
+    for s in range(1, n):
+        fy0, fy1 = min(fy0, math.floor(pys[s])), max(fy1, math.floor(pys[s]))
+    r0, th = int(fy0) - 1, int(fy1 - fy0) + 4
+    c0s, tws, taps, qxs = scratch
+    if th > TILE:
+        return r0, 0
+    level = _shared_level(levels, r0, th, h)
+    if level >= 0:
+        for s in range(n):
+            qxs[s] = _in_frame(pxs[s], level, 0)
+        c0, _, tw, _ = _tile_bounds(qxs, pys, n, 0)
+        if tw > TILE:
+            return r0, 0
+        _sum_into_tile(tile, qxs, pys, pws, n, scale, c0, r0, tw, th, 0)
+        for ty in range(th):
+            c0s[ty], tws[ty] = c0, tw
+    elif not _row_tile(levels, h, w, pxs, pys, pws, n, scale, r0, th, tile, c0s, tws, taps):
+        return r0, 0
+    return r0, th
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _polar_footprint(src, levels, reduced, row_offsets, pxs, pys, pws, n, scratch, tile, acc):  # pragma: no cover
+    """:func:`_footprint` for a latlong footprint that reaches the reduced polar rows (or past a pole): one tile
+    of per-row frames (:func:`_row_tile`), read from each row's own pixels."""
+    h, w = src.shape[1], src.shape[2]
+    r0, th = _polar_tile(levels, h, w, pxs, pys, pws, n, 1.0, scratch, tile)
+    if th == 0:
+        return False
+    c0s, tws = scratch[0], scratch[1]
+    r, g, b = 0.0, 0.0, 0.0
+    for ty in range(th):
+        row, level, width, _ = _row_frame(levels, h, w, r0 + ty)
+        for tx in range(tws[ty]):
+            k = tile[ty, tx]
+            col = _wrapped_column(c0s[ty] + tx, width)
+            if level == 0:
+                r += k * src[0, row, col, 0]
+                g += k * src[0, row, col, 1]
+                b += k * src[0, row, col, 2]
+            else:
+                i = row_offsets[row] + col
+                r += k * reduced[i, 0]
+                g += k * reduced[i, 1]
+                b += k * reduced[i, 2]
+    acc[0] += r
+    acc[1] += g
+    acc[2] += b
+    return True
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _footprint(src, face, padded, levels, reduced, row_offsets, caps, pxs, pys, pws, n, scratch, tile,
+               acc):  # pragma: no cover - compiled
     """Σ_s pws[s] · (B-spline lookup at (pxs[s], pys[s])) for one target pixel's n subsamples on source face
     ``face``, added to ``acc``. ``src`` is an unpadded latlong image (``padded`` False: taps past a pole or the seam
     are found by :func:`_source_row_col`) or a padded image whose validity is 1 everywhere (a cube's).
@@ -296,12 +461,15 @@ def _footprint(src, face, padded, pxs, pys, pws, n, tile, acc):  # pragma: no co
     The subsamples' 4×4 taps overlap: their weights are first summed into one tile of source taps, which is then
     read once (a k = 3 footprint reads ~25 taps instead of 144). Returns False, touching nothing, when the taps
     span more than TILE × TILE (near a latlong's poles and seam) or leave the padded image, for the caller to look
-    up directly."""
+    up directly. Footprints reaching a latlong's reduced polar rows (``caps``: how many rows at the north and south
+    ends have a reduction) are summed in each row's own frame (:func:`_polar_footprint`)."""
     pad = 2 if padded else 0
     c0, r0, tw, th = _tile_bounds(pxs, pys, n, pad)
     if tw > TILE or th > TILE:
         return False
     h, w = src.shape[1], src.shape[2]
+    if not padded and (r0 < caps[0] or r0 + th > h - caps[1]):
+        return _polar_footprint(src, levels, reduced, row_offsets, pxs, pys, pws, n, scratch, tile, acc)
     inside = r0 >= 0 and r0 + th <= h and c0 >= 0 and c0 + tw <= w
     if padded and not inside:
         return False
@@ -337,11 +505,30 @@ def _same_face(pfs, n):  # pragma: no cover - compiled
 
 
 @njit(cache=True, error_model="numpy")
-def _lookup(src_kind, src, valid, face, px, py, wx, wy, acc):  # pragma: no cover - compiled
+def _lookup(src_kind, src, valid, levels, reduced, row_offsets, face, px, py, wx, wy,
+            acc):  # pragma: no cover - compiled
     if src_kind == LATLONG:
-        _lookup_latlong(src, px, py, wx, wy, acc)
+        _lookup_latlong(src, levels, reduced, row_offsets, px, py, wx, wy, acc)
     else:
         _lookup_padded(src, valid, face, px, py, wx, wy, acc)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _subsample(tgt_kind, tgt_axes, face, u, v, weight_of, rotation, src_kind, src_axes, src_h, src_w,
+               pfs, pxs, pys, pws, n):  # pragma: no cover - compiled
+    """Subsample n at target (u, v): its source position and weight (``weight_of`` < 0: the target's dω/(du dv),
+    else that weight); returns the weight, 0 — nothing stored — off a disc."""
+    x, y, z, weight = target_direction(tgt_kind, tgt_axes, face, u, v)
+    if weight_of >= 0.0:
+        weight = weight_of
+    if weight <= 0.0:
+        return 0.0
+    rx = x * rotation[0, 0] + y * rotation[1, 0] + z * rotation[2, 0]  # d @ R
+    ry = x * rotation[0, 1] + y * rotation[1, 1] + z * rotation[2, 1]
+    rz = x * rotation[0, 2] + y * rotation[1, 2] + z * rotation[2, 2]
+    pfs[n], pxs[n], pys[n] = source_position(src_kind, src_axes, rx, ry, rz, src_h, src_w)
+    pws[n] = weight
+    return weight
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -358,27 +545,22 @@ def _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, k, rotation, src_kind,
             u, v = (col + 0.5) / w, (row + 0.5) / h
         else:
             break
-        x, y, z, weight = target_direction(tgt_kind, tgt_axes, face, u, v)
-        if i == k * k:
-            weight = 1.0
-        if weight <= 0.0:
-            continue
-        rx = x * rotation[0, 0] + y * rotation[1, 0] + z * rotation[2, 0]  # d @ R
-        ry = x * rotation[0, 1] + y * rotation[1, 1] + z * rotation[2, 1]
-        rz = x * rotation[0, 2] + y * rotation[1, 2] + z * rotation[2, 2]
-        pfs[n], pxs[n], pys[n] = source_position(src_kind, src_axes, rx, ry, rz, src_h, src_w)
-        pws[n] = weight
-        wsum += weight
-        n += 1
+        weight = _subsample(tgt_kind, tgt_axes, face, u, v, 1.0 if i == k * k else -1.0, rotation, src_kind,
+                            src_axes, src_h, src_w, pfs, pxs, pys, pws, n)
+        if weight > 0.0:
+            wsum += weight
+            n += 1
     return n, wsum
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})
-def resample_into(src_kind, src, valid, src_axes, src_h, src_w, tgt_kind, tgt_axes, tgt_h, tgt_valid, all_valid,
-                  k, rotation, out, first):  # pragma: no cover - compiled
+def resample_into(src_kind, src, valid, levels, reduced, row_offsets, caps, src_axes, src_h, src_w, tgt_kind,
+                  tgt_axes, tgt_h, tgt_valid, all_valid, k, rotation, out, first):  # pragma: no cover - compiled
     """Fill ``out`` (n, W, 3) float32 with the target's lines ``first`` to ``first + n − 1`` (a line is one row of
     one face, face-major: line = face·H + row, H = ``tgt_h``), from ``src``: unpadded (1, H, W, 3) for a latlong
-    source, else the padded (F, H+4, W+4, 3) image with its ``valid`` taps. Unless ``all_valid``, ``tgt_valid``
+    source, else the padded (F, H+4, W+4, 3) image with its ``valid`` taps. A latlong source's polar rows may be
+    read from their azimuthal reductions (``levels``, ``reduced``, ``row_offsets``, ``caps``: see
+    :func:`_lookup_latlong` and :mod:`lightprobe.envmap.polar`). Unless ``all_valid``, ``tgt_valid``
     (F, H, W) uint8 says which target pixels cover the sphere (the rest are 0). ``rotation`` R: the target at d
     shows the source at Rᵀd. Lines are independent, so a caller can fill a map in bands or stream it in strips.
 
@@ -392,7 +574,7 @@ def resample_into(src_kind, src, valid, src_axes, src_h, src_w, tgt_kind, tgt_ax
         wx, wy, acc, value = np.empty(4), np.empty(4), np.empty(3), np.empty(3)
         pfs, pxs, pys, pws = (np.empty(k * k + 1, np.int64), np.empty(k * k + 1), np.empty(k * k + 1),
                               np.empty(k * k + 1))
-        tile = np.empty((TILE, TILE))
+        tile, scratch = np.empty((TILE, TILE)), _polar_scratch(k)
         for col in range(w):
             if not all_valid and tgt_valid[face, row, col] == 0:
                 for c in range(3):
@@ -402,10 +584,12 @@ def resample_into(src_kind, src, valid, src_axes, src_h, src_w, tgt_kind, tgt_ax
                                   src_h, src_w, pfs, pxs, pys, pws)
             acc[0], acc[1], acc[2] = 0.0, 0.0, 0.0
             if not (tiled and _same_face(pfs, n)
-                    and _footprint(src, pfs[0], src_kind != LATLONG, pxs, pys, pws, n, tile, acc)):
+                    and _footprint(src, pfs[0], src_kind != LATLONG, levels, reduced, row_offsets, caps, pxs, pys,
+                                   pws, n, scratch, tile, acc)):
                 for s in range(n):  # looked up one by one (compiled apart: it is the rarer path for these sources)
                     value[0], value[1], value[2] = 0.0, 0.0, 0.0
-                    _lookup(src_kind, src, valid, pfs[s], pxs[s], pys[s], wx, wy, value)
+                    _lookup(src_kind, src, valid, levels, reduced, row_offsets, pfs[s], pxs[s], pys[s], wx, wy,
+                            value)
                     for c in range(3):
                         acc[c] += pws[s] * value[c]
             for c in range(3):
@@ -424,21 +608,61 @@ def _latlong_index(row, col, h, w):  # pragma: no cover - compiled
     return row * w + col
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _latlong_taps(levels, row_offsets, h, w, x, r0, wy, q, wx, idx, wts, t):  # pragma: no cover - compiled
+    """The 16 taps of one B-spline lookup in a latlong (rows r0 … r0 + 3, as :func:`_lookup_latlong` reads them),
+    weight ``q`` each, stored from ``t``; returns the next free slot."""
+    for dy in range(4):
+        row, level, width, shift = _row_frame(levels, h, w, r0 + dy)
+        xr = _in_frame(x, level, shift)
+        fx = math.floor(xr)
+        _bspline_weights(xr - fx, wx)
+        for dx in range(4):
+            col = _wrapped_column(int(fx) - 1 + dx, width)
+            idx[t] = row * w + col if level == 0 else h * w + row_offsets[row] + col
+            wts[t] = q * wy[dy] * wx[dx]
+            t += 1
+    return t
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _polar_taps(levels, row_offsets, h, w, pxs, pys, pws, n, scale, scratch, tile, idx, wts):  # pragma: no cover
+    """:func:`_polar_footprint` as taps (a reduced row's at H·W + its place in the reduced rows); returns how
+    many, 0 if the footprint outgrows the tile."""
+    r0, th = _polar_tile(levels, h, w, pxs, pys, pws, n, scale, scratch, tile)
+    if th == 0:
+        return 0
+    c0s, tws = scratch[0], scratch[1]
+    t = 0
+    for ty in range(th):
+        row, level, width, _ = _row_frame(levels, h, w, r0 + ty)
+        for tx in range(tws[ty]):
+            if tile[ty, tx] != 0.0:
+                col = _wrapped_column(c0s[ty] + tx, width)
+                idx[t] = row * w + col if level == 0 else h * w + row_offsets[row] + col
+                wts[t] = tile[ty, tx]
+                t += 1
+    return t
+
+
 @njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})
-def footprint_taps(src_kind, src_shape, valid, index_map, src_axes, src_h, src_w, tgt_kind, tgt_axes, tgt_h, tgt_w,
-                   tgt_valid, all_valid, k, rotation, first, idx, wts, counts):  # pragma: no cover - compiled
+def footprint_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, caps, src_axes, src_h, src_w, tgt_kind,
+                   tgt_axes, tgt_h, tgt_w, tgt_valid, all_valid, k, rotation, first, idx, wts,
+                   counts):  # pragma: no cover - compiled
     """The taps of target lines ``first`` … (one row of ``idx``/``wts``, (n_pixels, max_taps), per target pixel of
     the lines, row-major): source pixel indices (flat over the unpadded source grid) and weights whose sum over a
     pixel's taps reproduces :func:`resample_into` for any source values. ``src_shape`` is the shape of the image
     resample_into reads (unpadded latlong, or padded); ``index_map`` gives, for a padded image, the flat source
     index of every padded texel. Taps of one footprint tile are merged; a pixel looked up subsample by subsample
-    lists its 16 taps per subsample (the apply sums repeats). ``counts`` gets each pixel's number of taps."""
+    lists its 16 taps per subsample (the apply sums repeats). ``counts`` gets each pixel's number of taps. A tap
+    of a latlong's reduced polar row (``levels`` …, as for :func:`resample_into`) has index H·W + its place in the
+    reduced rows (:func:`apply_taps` reads it there)."""
     h, w = tgt_h, tgt_w
     n_lines = counts.shape[0] // w
     tiled = src_kind == LATLONG or src_kind == CUBE
     pfs, pxs, pys, pws = (np.empty(k * k + 1, np.int64), np.empty(k * k + 1), np.empty(k * k + 1),
                           np.empty(k * k + 1))
-    tile = np.empty((TILE, TILE))
+    tile, scratch = np.empty((TILE, TILE)), _polar_scratch(k)
     wx, wy = np.empty(4), np.empty(4)
     for line in range(first, first + n_lines):
         face, row = line // h, line % h
@@ -454,6 +678,13 @@ def footprint_taps(src_kind, src_shape, valid, index_map, src_axes, src_h, src_w
                 pad = 0 if src_kind == LATLONG else 2
                 c0, r0, tw, th = _tile_bounds(pxs, pys, n, pad)
                 ok = tw <= TILE and th <= TILE
+                if ok and not pad and (r0 < caps[0] or r0 + th > src_h - caps[1]):
+                    ok = False
+                    t = _polar_taps(levels, row_offsets, src_h, src_w, pxs, pys, pws, n, 1.0 / wsum, scratch, tile,
+                                    idx[p], wts[p])
+                    if t > 0:
+                        counts[p] = t
+                        continue
                 if ok and pad:
                     ok = r0 >= 0 and r0 + th <= src_shape[1] and c0 >= 0 and c0 + tw <= src_shape[2]
                 if ok:
@@ -475,11 +706,8 @@ def footprint_taps(src_kind, src_shape, valid, index_map, src_axes, src_h, src_w
                 _bspline_weights(pys[s] - fy, wy)
                 q = pws[s] / wsum
                 if src_kind == LATLONG:
-                    for dy in range(4):
-                        for dx in range(4):
-                            idx[p, t] = _latlong_index(int(fy) - 1 + dy, int(fx) - 1 + dx, src_h, src_w)
-                            wts[p, t] = q * wy[dy] * wx[dx]
-                            t += 1
+                    t = _latlong_taps(levels, row_offsets, src_h, src_w, pxs[s], int(fy) - 1, wy, q, wx, idx[p],
+                                      wts[p], t)
                 else:
                     x0 = min(max(int(fx) + 1, 0), src_shape[2] - 4)  # padded: + 2, − 1 for the first tap
                     y0 = min(max(int(fy) + 1, 0), src_shape[1] - 4)
@@ -499,17 +727,24 @@ def footprint_taps(src_kind, src_shape, valid, index_map, src_axes, src_h, src_w
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})
-def apply_taps(src, offsets, idx, wts, out, first):  # pragma: no cover - compiled
+def apply_taps(src, reduced, offsets, idx, wts, out, first):  # pragma: no cover - compiled
     """out[p − first] = Σ_j wts[j] · src[idx[j]] for pixels p = first … first + len(out) − 1 (CSR ``offsets``);
-    ``src`` is the source flattened to (pixels, 3)."""
+    ``src`` is the source flattened to (pixels, 3); an index past it reads ``reduced`` (a latlong's reduced polar
+    rows) at index − pixels."""
+    n_src = src.shape[0]
     for p in range(first, first + out.shape[0]):
         r, g, b = 0.0, 0.0, 0.0
         for j in range(offsets[p], offsets[p + 1]):
             q = wts[j]
             i = idx[j]
-            r += q * src[i, 0]
-            g += q * src[i, 1]
-            b += q * src[i, 2]
+            if i < n_src:
+                r += q * src[i, 0]
+                g += q * src[i, 1]
+                b += q * src[i, 2]
+            else:
+                r += q * reduced[i - n_src, 0]
+                g += q * reduced[i - n_src, 1]
+                b += q * reduced[i - n_src, 2]
         out[p - first, 0] = r
         out[p - first, 1] = g
         out[p - first, 2] = b

@@ -13,7 +13,7 @@ from ..layouts import CUBE, Cross, Layout
 from .. import limits
 from ..limits import check_memory, check_pixels
 from ..progress import track
-from . import fused
+from . import fused, polar
 from .map import EnvMap, owned
 
 _CHUNK_SAMPLES = 1 << 18  # direction lookups per chunk of a resampling pass (bounds memory to ~100 MB)
@@ -77,14 +77,17 @@ def resample(
 
     Each target pixel is the solid-angle-weighted mean (weights ``dω/(du dv)`` of the target layout) of k×k
     stratified lookups spread over its footprint, each a cubic B-spline interpolation of the source. Lookups are
-    at most half a source pixel apart, so ∫L dω is conserved (to ~0.1 % even for a sun of one pixel) and a uniform
-    map stays exactly uniform; sources with over 16 pixels per target pixel are first box-reduced (exactly
-    energy-preserving). ``rotation`` R turns the environment: the target at direction d shows the source at Rᵀd.
+    at most half a source pixel apart (k is measured on a sample of the target's pixels:
+    :func:`supersampling`), so ∫L dω is conserved (to ~0.1 % even for a sun of one pixel) and a uniform map stays
+    exactly uniform; sources with over 16 pixels per target pixel are first box-reduced (exactly
+    energy-preserving), and a latlong source's polar rows are read from their reductions in azimuth where the
+    lookups would skip columns (:mod:`lightprobe.envmap.polar`; the first row at each pole stays over-weighted,
+    1.25× its solid angle). ``rotation`` R turns the environment: the target at direction d shows the source at Rᵀd.
     The work is one compiled pass (:mod:`lightprobe.envmap.fused`) whose memory is the output.
     """
     plan = _plan(source, target, size, rotation, samples)
     if plan is None:
-        source, grid, k = _prepared(source, target, size, samples)
+        source, grid, k, _ = _prepared(source, target, size, samples, rotation)
         return reference_resample(source, target, grid, k, rotation)  # a layout the kernel does not know
     out = np.empty(plan.lines_shape, dtype=np.float32)
     step = max(64, -(-len(out) // 16))
@@ -119,9 +122,10 @@ def resample_strips(source: EnvMap, target: Layout, size: int | None = None, *, 
     return (h, faces * w), strips()
 
 
-def _prepared(source: EnvMap, target: Layout, size: int | None, samples: int | None):
-    """Checks, then (source, target grid, k): a cross source as cube faces, box-reduced while it has over
-    :data:`MAX_FOOTPRINT_RATIO` pixels per target pixel, and the supersampling rate."""
+def _prepared(source: EnvMap, target: Layout, size: int | None, samples: int | None, rotation=None):
+    """Checks, then (source, target grid, k, steps): a cross source as cube faces, box-reduced while it has over
+    :data:`MAX_FOOTPRINT_RATIO` pixels per target pixel, the supersampling rate (:func:`supersampling`) and the
+    measured steps it was chosen from."""
     size = size or target.default_size(source.valid_pixels)
     pixels = check_size(target, size)
     check_memory(resample_memory(math.prod(source.grid), pixels, target), f"resampling to {target.name} size {size}",
@@ -131,7 +135,22 @@ def _prepared(source: EnvMap, target: Layout, size: int | None, samples: int | N
         source = EnvMap(source.layout.to_cube(source.data), CUBE)
     while samples is None and _valid_ratio(source, target, grid) > MAX_FOOTPRINT_RATIO and _reducible(source):
         source = box_reduce(source)
-    return source, grid, samples or auto_samples(_valid_ratio(source, target, grid))
+    k, steps = supersampling(source.layout, source.grid, target, grid, rotation, samples)
+    return source, grid, k, steps
+
+
+def supersampling(source: Layout, source_grid: tuple[int, ...], target: Layout, grid: tuple[int, ...], rotation,
+                  samples: int | None) -> tuple[int, polar.Steps]:
+    """(k, steps): ``samples`` if given, else the rate :func:`auto_samples` gives for the valid-pixel ratio,
+    raised where the target's pixels land further apart in the source than the ratio says (a latlong target's
+    equator, a rotated grid): :func:`lightprobe.envmap.polar.samples_needed` on the measured steps."""
+    filled = _face_layout(target)
+    filled_grid = filled.grid_shape(target.size_of(grid))
+    steps = polar.measure_steps(source, source_grid, filled, filled_grid, rotation)
+    if samples:
+        return samples, steps
+    ratio = _valid_pixels(source, source_grid) / max(_valid_pixels(target, grid), 1)
+    return polar.samples_needed(steps, auto_samples(ratio)), steps
 
 
 def _face_layout(target: Layout) -> Layout:
@@ -173,19 +192,24 @@ class _Plan:
         return EnvMap(owned(out), self.target)
 
 
-def _plan(source: EnvMap, target: Layout, size: int | None, rotation, samples: int | None) -> _Plan | None:
+def _plan(source: EnvMap, target: Layout, size: int | None, rotation, samples: int | None,
+          reduce_poles: bool = True) -> _Plan | None:
     """The compiled pass for this resampling, or None when the kernel does not know one of the layouts."""
     if fused.CODES.get(source.layout.name) is None and not isinstance(source.layout, Cross):
         return None
     if fused.CODES.get(_face_layout(target).name) is None:
         return None
-    source, grid, k = _prepared(source, target, size, samples)
+    source, grid, k, steps = _prepared(source, target, size, samples, rotation)
     filled = _face_layout(target)
     grid = filled.grid_shape(target.size_of(grid))
     faces = grid if filled.faces > 1 else (1,) + grid
     src_kind = fused.CODES[source.layout.name]
+    turn = np.eye(3) if rotation is None else np.asarray(rotation, dtype=np.float64)
+    reduction = polar.no_reduction(source.grid[-2])
     if src_kind == fused.LATLONG:  # read in place: columns wrap and rows reflect across the poles in the kernel
         img, valid = np.ascontiguousarray(source.data)[None], np.ones((1, 1, 1), dtype=np.float32)
+        if reduce_poles:
+            reduction = polar.reduced_rows(img[0], polar.polar_levels(steps, source.grid, k))
     else:
         img, valid = source.layout.padded(source.data)
         if source.all_valid:  # a cube's padding is valid everywhere: no table of ones for the kernel to read
@@ -193,16 +217,16 @@ def _plan(source: EnvMap, target: Layout, size: int | None, rotation, samples: i
     all_valid = filled.valid_fraction == 1.0  # latlong, cube: no per-pixel mask
     tgt_valid = (np.ones((1, 1, 1), dtype=np.uint8) if all_valid
                  else filled.valid_mask(grid).reshape(faces).astype(np.uint8))
-    turn = np.eye(3) if rotation is None else np.asarray(rotation, dtype=np.float64)
-    args = (src_kind, img, valid, _axes(source.layout), source.grid[-2], source.grid[-1],
+    args = (src_kind, img, valid, *reduction, _axes(source.layout), source.grid[-2], source.grid[-1],
             fused.CODES[filled.name], _axes(filled), faces[1], tgt_valid, all_valid, k, turn)
     return _Plan(target, filled, grid, faces[1], args)
 
 
 def _fused_resample(source: EnvMap, target: Layout, grid: tuple[int, ...], k: int,
-                    rotation: np.ndarray | None) -> EnvMap:
-    """The compiled pass at a given supersampling rate k (for tests comparing it with :func:`reference_resample`)."""
-    plan = _plan(source, target, target.size_of(grid), rotation, k)
+                    rotation: np.ndarray | None, reduce_poles: bool = False) -> EnvMap:
+    """The compiled pass at a given supersampling rate k (for tests comparing it with :func:`reference_resample`,
+    which reads every row as it is: by default so does this)."""
+    plan = _plan(source, target, target.size_of(grid), rotation, k, reduce_poles)
     out = np.empty(plan.lines_shape, dtype=np.float32)
     plan.fill(out, 0)
     return plan.finish(out)
@@ -237,13 +261,14 @@ class Resampler:
         if (samples is None and ratio > MAX_FOOTPRINT_RATIO) or fused.CODES.get(source_layout.name) is None \
                 or fused.CODES.get(_face_layout(target).name) is None:
             return  # not cached: __call__ resamples directly
-        self._build(source_layout, source_grid, out_grid, samples or auto_samples(ratio))
+        k, steps = supersampling(source_layout, tuple(source_grid), target, out_grid, rotation, samples)
+        self._build(source_layout, source_grid, out_grid, k, steps)
 
     @property
     def nbytes(self) -> int:
         return 0 if self.offsets is None else self.offsets.nbytes + self.idx.nbytes + self.wts.nbytes
 
-    def _build(self, source_layout: Layout, source_grid, out_grid, k: int) -> None:
+    def _build(self, source_layout: Layout, source_grid, out_grid, k: int, steps: polar.Steps) -> None:
         filled = _face_layout(self.target)
         grid = filled.grid_shape(self.target.size_of(out_grid))
         faces = grid if filled.faces > 1 else (1,) + grid
@@ -252,9 +277,15 @@ class Resampler:
         check_memory(lines * w * (25 * 8 + 8) + min(lines, 64) * w * max_taps * 8,
                      f"footprint weights of {self.layout.name} → {self.target.name} size {self.size}", kernels=True)
         src_kind = fused.CODES[source_layout.name]
+        self._levels = None  # a latlong source's polar reduction levels, when it has any
+        levels, _, row_offsets, caps = polar.no_reduction(source_grid[-2])
         if src_kind == fused.LATLONG:
             src_shape, valid = (1,) + tuple(source_grid) + (3,), np.ones((1, 1, 1), np.float32)
             index_map = np.zeros((1, 1, 1), np.int32)
+            found = polar.polar_levels(steps, tuple(source_grid), k)
+            if found.any():  # where the reduced rows go (their values come with each map)
+                self._levels = levels = found
+                row_offsets, caps, _ = polar.row_layout(levels, source_grid[-1])
         else:
             flat = np.arange(math.prod(source_grid), dtype=np.int32).reshape(source_grid)[..., None]
             padded_index, valid = source_layout.padded(flat.astype(np.float64))  # padding is exact for integers
@@ -273,9 +304,9 @@ class Resampler:
             n = min(band, lines - first)
             idx, wts = np.empty((n * w, max_taps), np.int32), np.empty((n * w, max_taps), np.float32)
             counts = np.empty(n * w, np.int64)
-            fused.footprint_taps(src_kind, src_shape, valid, index_map, _axes(source_layout), source_grid[-2],
-                                 source_grid[-1], fused.CODES[filled.name], _axes(filled), faces[1], w, tgt_valid,
-                                 all_valid, k, turn, first, idx, wts, counts)
+            fused.footprint_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, caps,
+                                 _axes(source_layout), source_grid[-2], source_grid[-1], fused.CODES[filled.name],
+                                 _axes(filled), faces[1], w, tgt_valid, all_valid, k, turn, first, idx, wts, counts)
             keep = np.arange(max_taps)[None, :] < counts[:, None]
             return counts, idx[keep], wts[keep]
 
@@ -296,6 +327,8 @@ class Resampler:
         if self.offsets is None:
             return resample(env, self.target, self.size, rotation=self.rotation, samples=self.samples)
         data = self.layout.to_cube(env.data) if isinstance(self.layout, Cross) else env.data
+        reduced = (polar.no_reduction()[1] if self._levels is None
+                   else polar.reduced_rows(np.asarray(data), self._levels)[1])
         src = np.ascontiguousarray(data).reshape(-1, 3)
         lines, w = self._lines
         out = np.empty((lines * w, 3), np.float32)
@@ -303,7 +336,7 @@ class Resampler:
         threads = min(limits.threads(), max(1, pixels // 4096))
         step = -(-pixels // (4 * threads))
         with ThreadPoolExecutor(threads) as pool:
-            list(pool.map(lambda s: fused.apply_taps(src, self.offsets, self.idx, self.wts, out[s:s + step], s),
+            list(pool.map(lambda s: fused.apply_taps(src, reduced, self.offsets, self.idx, self.wts, out[s:s + step], s),
                           range(0, pixels, step)))
         out = out.reshape(self._filled_grid + (3,))
         if isinstance(self.target, Cross):

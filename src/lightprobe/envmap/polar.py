@@ -1,0 +1,203 @@
+"""A lat-long source's polar rows, reduced in azimuth to what the target samples: no aliasing near the poles.
+
+Near a lat-long pole one row's pixels are narrow (each spans 2π sin θ / W), and a target pixel there covers many of
+them — at the pole, all. Its k×k lookups then land several columns apart, and a source feature one column wide (a
+sun) is hit or missed by chance: ∫L dω was off by 0.3–0.7 % at 20° from the pole and by up to 88 % at the pole row.
+
+The cure is the source's, not the target's: every row whose lookups land more than :data:`MAX_SPACING` columns
+apart is read from its box reduction in azimuth — 2^ℓ neighbouring columns averaged, W / 2^ℓ pixels left — with ℓ
+the least that brings the lookups within :data:`MAX_SPACING` reduced columns. All pixels of a row have the same
+solid angle, so the reduction keeps the row's ∫L dω exactly and a uniform row uniform; the kernel interpolates each
+row on its own grid (:func:`lightprobe.envmap.fused._lookup_latlong`). Only rows within the polar caps
+(|cos θ| ≥ :data:`CAP_COS`) are reduced: elsewhere a row is wider than any sane target's pixel, and a mirror ball's
+rim — whose pixels are long arcs anywhere — must not blur the equator.
+
+How far apart the lookups land is measured, not modelled: on a sample of target pixels, the azimuth step to the next
+pixel right and below, in source columns, over k; each source row takes the largest among the samples whose
+footprint reaches it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from dataclasses import dataclass
+
+from ..layouts import Layout
+
+MAX_SPACING = 0.5  # source pixels between a pixel's neighbouring lookups, at most (keeps a one-pixel sun to ~0.1 %)
+MAX_SAMPLES = 16  # k×k lookups per target pixel, at most
+CAP_COS = 0.7  # rows with |cos θ| at least this (within ~46° of a pole) may be reduced
+SAMPLES = 16_000  # target pixels sampled (every stride-th) to measure the lookup spacing
+
+
+def no_reduction(rows: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(levels, reduced, row_offsets, caps) for a source of ``rows`` rows read as it is (the kernel reads a
+    latlong's level for every row it looks up: ``rows`` must be its height)."""
+    return np.zeros(rows, np.int64), np.zeros((1, 3), np.float32), np.zeros(rows, np.int64), np.zeros(2, np.int64)
+
+
+def max_level(width: int) -> int:
+    """The deepest reduction a row of ``width`` columns allows: an even number of columns (a half turn is a whole
+    number of them), at least 4 (the B-spline's taps)."""
+    level = 0
+    while width % (2 ** (level + 2)) == 0 and width >> (level + 1) >= 4:
+        level += 1
+    return level
+
+
+@dataclass(frozen=True)
+class Steps:
+    """How far apart, in source pixels, neighbouring target pixels land: for a sample of target pixels, the source
+    polar angle θ of each (latlong sources; else NaN) and the larger of its steps right and down, in source
+    columns (x) and rows (y). Lookups land these steps / k apart."""
+
+    theta: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    row: np.ndarray  # the pixel centre's source row coordinate (row r's centre at r)
+
+
+def measure_steps(source: Layout, source_grid: tuple[int, ...], target: Layout, grid: tuple[int, ...],
+                  rotation: np.ndarray | None) -> Steps:
+    """:class:`Steps` on a sample of the target's pixels (every stride-th, and every one near a latlong source's
+    poles, where the steps change fastest). Steps that cross between cube faces are left out."""
+    face, u, v, du, dv = _sampled_pixels(target, grid, rotation if source.name == "latlong" else None,
+                                         source.name == "latlong")
+    empty = np.zeros(0)
+    if face.size == 0:
+        return Steps(empty, empty, empty, empty)
+    right = np.where(u + du < 1.0, u + du, u - du)  # the neighbour inside the grid (not past a pole or edge)
+    below = np.where(v + dv < 1.0, v + dv, v - dv)
+    coords = [source.pixel_coords(_source_direction(target, face, uu, vv, rotation), source_grid)
+              for uu, vv in ((u, v), (right, v), (u, below))]
+    (f0, x0, y0), w = coords[0], source_grid[-1]
+    xs, ys = [], []
+    for f1, x1, y1 in coords[1:]:
+        dx = np.abs(x1 - x0)
+        if source.name == "latlong":
+            dx = np.minimum(dx, w - dx)  # across the seam
+        same = np.asarray(f1) == np.asarray(f0)
+        xs.append(np.where(same, dx, 0.0))
+        ys.append(np.where(same, np.abs(y1 - y0), 0.0))
+    step_x, step_y = np.maximum(*xs), np.maximum(*ys)
+    theta = ((np.asarray(y0) + 0.5) / source_grid[-2] * math.pi if source.name == "latlong"
+             else np.full(step_x.shape, np.nan))
+    return Steps(theta, step_x, step_y, np.asarray(y0, np.float64))
+
+
+def samples_needed(steps: Steps, at_least: int) -> int:
+    """The supersampling rate k: at least ``at_least``, and enough that lookups of all but the widest 0.5 % of
+    the sampled pixels (a mirror ball's rim) land within :data:`MAX_SPACING` source pixels in y, and in x outside
+    a latlong's polar caps (inside them, the rows are reduced instead: :func:`polar_levels`)."""
+    if steps.x.size == 0:
+        return at_least
+    polar = np.abs(np.cos(steps.theta)) >= CAP_COS  # False for non-latlong sources (NaN)
+    widest = np.maximum(steps.y, np.where(polar, 0.0, steps.x))
+    need = math.ceil(float(np.percentile(widest, 99.5)) / MAX_SPACING - 1e-9)
+    return max(at_least, min(need, MAX_SAMPLES))
+
+
+def polar_levels(steps: Steps, source_grid: tuple[int, int], k: int) -> np.ndarray:
+    """Per source row (H,) int64, its reduction level ℓ (0: read as it is): in the polar caps, the least ℓ that
+    brings the widest lookup spacing in azimuth among the sampled pixels reaching the row within
+    :data:`MAX_SPACING` reduced columns."""
+    h, w = source_grid
+    spacing = np.zeros(h)
+    if steps.x.size:  # each sampled pixel's spacing goes to every row its lookups' B-spline taps reach
+        reach = steps.y / 2 + 2.0
+        first = np.floor(steps.row - reach).astype(np.int64) + 1
+        count = np.ceil(steps.row + reach).astype(np.int64) - first
+        for offset in range(int(count.max())):
+            rows = first + offset
+            hit = (offset < count) & (rows >= 0) & (rows < h)  # rows past a pole are the pole's own: reached
+            np.maximum.at(spacing, rows[hit], steps.x[hit] / k)
+    need = np.ceil(np.log2(np.maximum(spacing, 1e-300) / MAX_SPACING) - 1e-9)
+    levels = np.clip(need, 0, max_level(w)).astype(np.int64)
+    cos = np.cos((np.arange(h) + 0.5) / h * math.pi)
+    levels[np.abs(cos) < CAP_COS] = 0
+    return levels
+
+
+def row_layout(levels: np.ndarray, width: int) -> tuple[np.ndarray, np.ndarray, int]:
+    """Where each reduced row sits: (row_offsets (H,), caps (2,), total reduced pixels); ``caps`` is how many rows
+    at the north and south ends the reduced rows reach (footprint tiles stay clear of them)."""
+    h = levels.size
+    widths = np.where(levels > 0, width >> levels, 0)
+    row_offsets = np.zeros(h, np.int64)
+    np.cumsum(widths[:-1], out=row_offsets[1:])
+    nonzero = np.nonzero(levels)[0]
+    north, south = nonzero[nonzero < h / 2], nonzero[nonzero >= h / 2]
+    caps = np.array([north[-1] + 1 if north.size else 0, h - south[0] if south.size else 0], np.int64)
+    return row_offsets, caps, int(widths.sum())
+
+
+def reduced_rows(data: np.ndarray, levels: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(levels, reduced, row_offsets, caps) for the kernel: row r of a latlong image (H, W, 3) with level ℓ > 0
+    becomes W / 2^ℓ means of 2^ℓ columns at ``reduced[row_offsets[r]:]`` (:func:`row_layout`), by ℓ halvings
+    (each the mean of a pair: float32 rounding, no float64 copy of the rows)."""
+    h, w = data.shape[:2]
+    if not levels.any():
+        return no_reduction(h)
+    row_offsets, caps, total = row_layout(levels, w)
+    reduced = np.empty((total, 3), np.float32)
+    rows = np.nonzero(levels)[0]
+    for run in np.split(rows, np.nonzero(np.diff(rows) > 1)[0] + 1):  # contiguous runs: views, not copies
+        for first in range(run[0], run[-1] + 1, 64):
+            last = min(first + 64, run[-1] + 1)
+            block, depth, index = data[first:last], levels[first:last], np.arange(first, last)
+            for level in range(1, int(depth.max()) + 1):
+                block = (block[:, 0::2] + block[:, 1::2]) * np.float32(0.5)
+                for i in np.nonzero(depth == level)[0]:
+                    start = row_offsets[index[i]]
+                    reduced[start:start + block.shape[1]] = block[i]
+                deeper = depth > level
+                block, depth, index = block[deeper], depth[deeper], index[deeper]
+    return levels.astype(np.int64), reduced, row_offsets, caps
+
+
+def _stride(target: Layout, grid: tuple[int, ...]) -> int:
+    return max(1, int(round(math.sqrt(math.prod(grid) / SAMPLES))))
+
+
+def _sampled_pixels(target: Layout, grid: tuple[int, ...], rotation: np.ndarray | None, poles: bool):
+    """Target pixel centres inside the layout — every stride-th, and (``poles``) every one near the source's
+    poles — as (face, u, v), with one pixel's step (du, dv)."""
+    stride = _stride(target, grid)
+    h, w = grid[-2:]
+    faces = grid[0] if len(grid) == 3 else 1
+    f, r, c = np.meshgrid(np.arange(faces), np.arange(stride // 2, h, stride), np.arange(stride // 2, w, stride),
+                          indexing="ij")
+    f, r, c = f.ravel(), r.ravel(), c.ravel()
+    if stride > 1 and poles:
+        near = [_pixels_near_pole(target, grid, pole, rotation, 2 * stride) for pole in (1.0, -1.0)]
+        f, r, c = (np.concatenate([a] + [n[i] for n in near]) for i, a in enumerate((f, r, c)))
+    u, v = (c + 0.5) / w, (r + 0.5) / h
+    inside = target.uv_density(f, u, v) > 0
+    return f[inside], u[inside], v[inside], 1.0 / w, 1.0 / h
+
+
+def _pixels_near_pole(target: Layout, grid: tuple[int, ...], pole: float, rotation: np.ndarray | None,
+                      radius: int):
+    """(face, row, column) of the target pixels within about ``radius`` pixels of the source pole (0, ±1, 0)."""
+    pitch = math.sqrt(4 * math.pi / math.prod(grid))  # a typical pixel's angle: points about a pixel apart
+    a = np.linspace(-2 * radius * pitch, 2 * radius * pitch, 4 * radius + 1)
+    x, z = np.meshgrid(a, a)
+    d = np.stack([x, np.full_like(x, pole), z], axis=-1).reshape(-1, 3)  # the tangent plane at the pole
+    if rotation is not None:
+        d = d @ rotation.T  # the target direction showing source direction s is R s
+    face, px, py = target.pixel_coords(d / np.sqrt((d * d).sum(axis=-1))[:, None], grid)
+    h, w = grid[-2:]
+    rows = np.clip(np.floor(py + 0.5), 0, h - 1).astype(np.int64)
+    cols = np.clip(np.floor(px + 0.5), 0, w - 1).astype(np.int64)
+    face = np.zeros_like(rows) if len(grid) == 2 else np.asarray(face, np.int64)
+    flat = np.unique((face * h + rows) * w + cols)
+    return flat // (h * w), flat // w % h, flat % w
+
+
+def _source_direction(target: Layout, face, u, v, rotation) -> np.ndarray:
+    d = target.uv_to_dir(face, u, v)
+    d = d / np.sqrt((d * d).sum(axis=-1))[:, None]
+    return d if rotation is None else d @ rotation  # row vectors: d @ R = (Rᵀ d)ᵀ, the kernel's turn
