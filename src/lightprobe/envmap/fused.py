@@ -183,7 +183,7 @@ def _bspline4(t):  # pragma: no cover - compiled
     return w0, w1, 1.0 - w0 - w1 - w3, w3
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _reflected_row(row, h):  # pragma: no cover - compiled
     """A latlong row that may lie past a pole → (the row that holds it, whether it is half a turn round)."""
     if row < 0:  # past the north pole: row −1 − row, half a turn round
@@ -318,7 +318,7 @@ def _row_frame(levels, h, w, row):  # pragma: no cover - compiled
     return src_row, level, width, width // 2 if turned else 0
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _row_tile(levels, h, w, pxs, pys, pws, n, scale, r0, th, tile, c0s, tws, taps):  # pragma: no cover - compiled
     """:func:`_sum_into_tile` for latlong tiles whose rows may each have their own column frame — a reduction
     level (its columns are 2^ℓ source columns) or a half-turn shift (a row reached across the pole): tile row ty
@@ -375,53 +375,28 @@ def _wrapped_column(col, width):  # pragma: no cover - compiled
     return min(max(col, 0), width - 1)
 
 
-@njit(cache=True, inline="always", error_model="numpy")
-def _shared_level(levels, r0, th, h):  # pragma: no cover - compiled
-    """The reduction level of latlong rows r0 … r0 + th − 1 when they all have it and none is past a pole, else −1."""
-    if r0 < 0 or r0 + th > h:
-        return -1
-    level = levels[r0]
-    for row in range(r0 + 1, r0 + th):
-        if levels[row] != level:
-            return -1
-    return level
-
-
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _polar_scratch(k):  # pragma: no cover - compiled
-    """Scratch arrays for :func:`_row_tile`: each tile row's first column and width, each subsample's taps, and
-    the subsamples' columns in a shared reduced frame."""
-    return np.empty(TILE, np.int64), np.empty(TILE, np.int64), np.empty((k * k + 1, 4, 2)), np.empty(k * k + 1)
+    """Scratch arrays for :func:`_row_tile`: each tile row's first column and width, each subsample's taps."""
+    return np.empty(TILE, np.int64), np.empty(TILE, np.int64), np.empty((k * k + 1, 4, 2))
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _polar_tile(levels, h, w, pxs, pys, pws, n, scale, scratch, tile):  # pragma: no cover - compiled
-    """The tile of a latlong footprint near the poles: (first row, rows), rows 0 if it outgrows TILE. Where all
-    its rows share one frame (most footprints) it is summed as off the caps, in that frame; else row by row
-    (:func:`_row_tile`). Each tile row's first column and width are left in ``scratch``."""
+    """The tile of a latlong footprint near the poles, row by row in each row's frame (:func:`_row_tile`):
+    (first row, rows), rows 0 if it outgrows TILE. Each tile row's first column and width are left in
+    ``scratch``."""
     fy0, fy1 = math.floor(pys[0]), math.floor(pys[0])
     for s in range(1, n):
         fy0, fy1 = min(fy0, math.floor(pys[s])), max(fy1, math.floor(pys[s]))
     r0, th = int(fy0) - 1, int(fy1 - fy0) + 4
-    c0s, tws, taps, qxs = scratch
-    if th > TILE:
-        return r0, 0
-    level = _shared_level(levels, r0, th, h)
-    if level >= 0:
-        for s in range(n):
-            qxs[s] = _in_frame(pxs[s], level, 0)
-        c0, _, tw, _ = _tile_bounds(qxs, pys, n, 0)
-        if tw > TILE:
-            return r0, 0
-        _sum_into_tile(tile, qxs, pys, pws, n, scale, c0, r0, tw, th, 0)
-        for ty in range(th):
-            c0s[ty], tws[ty] = c0, tw
-    elif not _row_tile(levels, h, w, pxs, pys, pws, n, scale, r0, th, tile, c0s, tws, taps):
+    c0s, tws, taps = scratch
+    if th > TILE or not _row_tile(levels, h, w, pxs, pys, pws, n, scale, r0, th, tile, c0s, tws, taps):
         return r0, 0
     return r0, th
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")  # compiled apart: the kernels compile in half the time
 def _polar_footprint(src, levels, reduced, row_offsets, pxs, pys, pws, n, scratch, tile, acc):  # pragma: no cover
     """:func:`_footprint` for a latlong footprint that reaches the reduced polar rows (or past a pole): one tile
     of per-row frames (:func:`_row_tile`), read from each row's own pixels."""
@@ -514,24 +489,6 @@ def _lookup(src_kind, src, valid, levels, reduced, row_offsets, face, px, py, wx
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _subsample(tgt_kind, tgt_axes, face, u, v, weight_of, rotation, src_kind, src_axes, src_h, src_w,
-               pfs, pxs, pys, pws, n):  # pragma: no cover - compiled
-    """Subsample n at target (u, v): its source position and weight (``weight_of`` < 0: the target's dω/(du dv),
-    else that weight); returns the weight, 0 — nothing stored — off a disc."""
-    x, y, z, weight = target_direction(tgt_kind, tgt_axes, face, u, v)
-    if weight_of >= 0.0:
-        weight = weight_of
-    if weight <= 0.0:
-        return 0.0
-    rx = x * rotation[0, 0] + y * rotation[1, 0] + z * rotation[2, 0]  # d @ R
-    ry = x * rotation[0, 1] + y * rotation[1, 1] + z * rotation[2, 1]
-    rz = x * rotation[0, 2] + y * rotation[1, 2] + z * rotation[2, 2]
-    pfs[n], pxs[n], pys[n] = source_position(src_kind, src_axes, rx, ry, rz, src_h, src_w)
-    pws[n] = weight
-    return weight
-
-
-@njit(cache=True, inline="always", error_model="numpy")
 def _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, k, rotation, src_kind, src_axes, src_h, src_w,
                 pfs, pxs, pys, pws):  # pragma: no cover - compiled
     """One target pixel's k×k subsamples: their source positions (pfs, pxs, pys) and weights ``dω/(du dv)``
@@ -545,11 +502,18 @@ def _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, k, rotation, src_kind,
             u, v = (col + 0.5) / w, (row + 0.5) / h
         else:
             break
-        weight = _subsample(tgt_kind, tgt_axes, face, u, v, 1.0 if i == k * k else -1.0, rotation, src_kind,
-                            src_axes, src_h, src_w, pfs, pxs, pys, pws, n)
-        if weight > 0.0:
-            wsum += weight
-            n += 1
+        x, y, z, weight = target_direction(tgt_kind, tgt_axes, face, u, v)
+        if i == k * k:
+            weight = 1.0
+        if weight <= 0.0:
+            continue
+        rx = x * rotation[0, 0] + y * rotation[1, 0] + z * rotation[2, 0]  # d @ R
+        ry = x * rotation[0, 1] + y * rotation[1, 1] + z * rotation[2, 1]
+        rz = x * rotation[0, 2] + y * rotation[1, 2] + z * rotation[2, 2]
+        pfs[n], pxs[n], pys[n] = source_position(src_kind, src_axes, rx, ry, rz, src_h, src_w)
+        pws[n] = weight
+        wsum += weight
+        n += 1
     return n, wsum
 
 
@@ -625,7 +589,7 @@ def _latlong_taps(levels, row_offsets, h, w, x, r0, wy, q, wx, idx, wts, t):  # 
     return t
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")  # compiled apart: the kernels compile in half the time
 def _polar_taps(levels, row_offsets, h, w, pxs, pys, pws, n, scale, scratch, tile, idx, wts):  # pragma: no cover
     """:func:`_polar_footprint` as taps (a reduced row's at H·W + its place in the reduced rows); returns how
     many, 0 if the footprint outgrows the tile."""
