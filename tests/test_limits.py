@@ -96,10 +96,11 @@ MAP_4K_MIB = 4096 * 2048 * 3 * 4 / 2**20
     (["sh", "{m}"], 3.0),
     (["sh", "{m}", "--order", "8"], 3.0),
     (["irradiance", "{m}", "--output", "{out}/e.exr"], 3.0),
-    # convert runs the compiled resampler: numba and LLVM (~130 MiB resident, up to ~200 on a freshly installed
-    # machine, where all of their libraries' file pages sit in the page cache and count) + the source (96) + Python,
-    # numpy and OpenImageIO (~50) make 2.8–3.5× before any output; the output is streamed to the file strip by
-    # strip. Issue 9 asks 3×: missed (3.3× measured on a warm machine, 3.9× right after an install).
+    # convert runs the compiled resampler: numba and LLVM (~130 MiB resident — ~64 of it appears at the first
+    # compiled call, even one loaded from the cache — up to ~200 on a freshly installed machine, where all of their
+    # libraries' file pages sit in the page cache and count) + the source (96) + Python, numpy and OpenImageIO (69)
+    # make 3.1–3.8× before any output; the output is streamed to the file strip by strip. Issue 9 asks 3×: missed
+    # (3.4–3.5× measured on a warm machine, 3.9× right after an install).
     (["convert", "{m}", "{out}/c.exr", "--to", "cube"], 4.5),
     (["convert", "{m}", "{out}/a.exr", "--to", "angular"], 4.5),
 ], ids=["info", "sh", "sh-order-8", "irradiance", "convert-cube", "convert-angular"])

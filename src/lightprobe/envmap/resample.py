@@ -141,15 +141,21 @@ def _prepared(source: EnvMap, target: Layout, size: int | None, samples: int | N
 
 def supersampling(source: Layout, source_grid: tuple[int, ...], target: Layout, grid: tuple[int, ...], rotation,
                   samples: int | None) -> tuple[int, polar.Steps]:
-    """(k, steps): ``samples`` if given, else the rate :func:`auto_samples` gives for the valid-pixel ratio,
-    raised where the target's pixels land further apart in the source than the ratio says (a latlong target's
-    equator, a rotated grid): :func:`lightprobe.envmap.polar.samples_needed` on the measured steps."""
+    """(k, steps): ``samples`` if given, else the rate :func:`auto_samples` gives for the valid-pixel ratio —
+    from a lat-long into a lat-long or cube, raised where the target's pixels land further apart in the source
+    than the ratio says (a turned grid): :func:`lightprobe.envmap.polar.samples_needed` on the measured steps."""
     filled = _face_layout(target)
     filled_grid = filled.grid_shape(target.size_of(grid))
     steps = polar.measure_steps(source, source_grid, filled, filled_grid, rotation)
     if samples:
         return samples, steps
     ratio = _valid_pixels(source, source_grid) / max(_valid_pixels(target, grid), 1)
+    if source.name != "latlong" or filled.valid_fraction < 1.0:
+        # Measured only from a lat-long into a lat-long or cube (a turned lat-long's equator lands further apart than
+        # the ratio says). A disc's rim, as source or target, is one direction spread over a ring — the steps there
+        # grow without bound and the measured rate would be the cap — and a cube's corner texels are a fifth of its
+        # centre's: from a cube the rate would double for its corners alone. The ratio serves those, as it did.
+        return auto_samples(ratio), steps
     return polar.samples_needed(steps, auto_samples(ratio)), steps
 
 
