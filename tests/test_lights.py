@@ -95,3 +95,63 @@ def test_bad_parameters_are_one_clear_error():
         decompose(EnvMap(np.ones((16, 32, 3), np.float32), LATLONG), LightParams(sizes=0))
     with pytest.raises(UsageError, match="inner ratio"):
         LightParams(inner_ratio=1.5).check()
+
+
+# ---- the command and its JSON ---------------------------------------------------------------------------------------
+def _run(capsys, *argv):
+    from lightprobe.cli import main
+
+    code = main([str(a) for a in argv])
+    return (code, *capsys.readouterr())
+
+
+def test_the_lights_command_writes_the_json_the_ambient_and_a_preview(tmp_path, capsys):
+    """``lightprobe lights``: the versioned JSON (lights in the world frame, powers that add up with the ambient's
+    to the map's, the ambient's radiance SH, every parameter), the ambient map in the input's layout, a preview."""
+    import json
+
+    from lightprobe.io import read_image
+
+    src = shared("debevec/cross/kitchen_cross.hdr")
+    out, amb, pic = tmp_path / "l.json", tmp_path / "ambient.exr", tmp_path / "lights.png"
+    code, said, err = _run(capsys, "lights", src, "-o", out, "--ambient", amb, "--preview", pic,
+                           "--ambient-order", 3)
+    assert code == 0, err
+    doc = json.loads(out.read_text())
+    assert (doc["format"], doc["version"], doc["frame"]) == ("lightprobe.lights", 1, "world")
+    assert 3 <= len(doc["lights"]) <= 5 and f"{len(doc['lights'])} lights" in said
+    env = read_envmap(src)
+    ambient = read_envmap(amb, "cross")
+    powers = np.sum([light["power"] for light in doc["lights"]], axis=0)
+    np.testing.assert_allclose(powers + doc["ambient"]["power"], env.integral(), rtol=1e-9)
+    np.testing.assert_allclose(ambient.integral(), doc["ambient"]["power"], rtol=1e-6)  # as written (float32)
+    np.testing.assert_allclose(doc["total_power"], env.integral(), rtol=1e-9)
+    assert doc["shares"]["lights"] + doc["shares"]["ambient"] == pytest.approx(1.0)
+    assert doc["ambient"]["sh"]["l_max"] == 3 and doc["ambient"]["sh"]["quantity"] == "radiance"
+    assert doc["parameters"]["inner_ratio"] == 0.75 and doc["parameters"]["sizes"] == 20
+    for light in doc["lights"]:
+        d = np.array(light["direction"])
+        assert np.linalg.norm(d) == pytest.approx(1.0)
+        assert np.degrees(np.arcsin(d[1])) == pytest.approx(light["elevation_deg"])
+        assert light["radiance"][1] * light["solid_angle_sr"] == pytest.approx(light["power"][1])
+    assert read_image(pic).shape == (256, 512, 3)
+
+
+def test_the_lights_command_refuses_bad_parameters_in_one_line(tmp_path, capsys):
+    for argv in (["--sizes", "0"], ["--min-extent", "50", "--max-extent", "10"], ["--candidates", "nan"],
+                 ["--ambient-order", "99"]):
+        code, _, err = _run(capsys, "lights", "-o", tmp_path / "l.json", *argv)
+        lines = err.strip().splitlines()
+        assert code == 2 and len(lines) == 1 and lines[0].startswith("lightprobe: error: "), err
+        assert not (tmp_path / "l.json").exists()
+
+
+def test_a_uniform_map_gives_no_lights_and_all_ambient(tmp_path, capsys):
+    import json
+
+    from lightprobe.io import write_image
+
+    write_image(tmp_path / "u.exr", np.full((32, 64, 3), 1.5, np.float32))
+    code, _, err = _run(capsys, "lights", tmp_path / "u.exr", "-o", tmp_path / "l.json")
+    doc = json.loads((tmp_path / "l.json").read_text())
+    assert code == 0 and doc["lights"] == [] and doc["shares"]["ambient"] == 1.0

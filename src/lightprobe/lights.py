@@ -166,8 +166,9 @@ def decompose(env: EnvMap, params: LightParams | None = None) -> Decomposition:
 # ---- the working grid -----------------------------------------------------------------------------------------------
 def _working_grid(env: EnvMap, rows: int) -> EnvMap:
     """The map resampled (energy-conservingly, :func:`lightprobe.envmap.resample`) to a lat-long of ``rows`` ×
-    2·rows, or fewer rows when the map has fewer pixels; a lat-long of that size is used as it is."""
-    rows = int(min(rows, max(16, math.isqrt(max(env.valid_pixels // 2, 1)))))
+    2·rows — up as well as down: the smallest filter's inner cap (1.7° by default) must span several working
+    pixels, or its sum counts one pixel or none and a uniform map shows spurious lights. A lat-long of that size
+    is used as it is."""
     if env.layout == LATLONG and env.grid[0] == rows:
         return env
     return env.to(LATLONG, rows)
@@ -196,7 +197,7 @@ def _candidates(rows_y: np.ndarray, fraction: float) -> tuple[np.ndarray, np.nda
     angle; ties by index), brightest first; none if every pixel has the same luminance (nothing stands out)."""
     h, w = rows_y.shape
     y = (rows_y / LATLONG.row_solid_angles((h, w))[:, None]).ravel()
-    if not y.size or y.max() <= y.min():
+    if not y.size or y.max() <= y.min() * (1 + 1e-9):  # uniform, up to the rounding of ∫Y dω / dω
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     n = max(1, int(round(fraction * y.size)))
     order = np.argsort(-y, kind="stable")[:n]
@@ -267,3 +268,25 @@ def cap_sums(prefix, theta, cand_theta, cand_phi, radii, out):  # pragma: no cov
                     out[i, k] += prefix[row, hi_w + 1] - prefix[row, lo_w]
                 else:
                     out[i, k] += (full - prefix[row, lo_w]) + prefix[row, hi_w + 1]
+
+
+# ---- the preview ----------------------------------------------------------------------------------------------------
+OUTLINE = np.array([0.1, 1.0, 0.2])  # display-encoded colour of a light's cap outline
+
+
+def preview(env: EnvMap, lights: list[AreaLight], rows: int = 256) -> np.ndarray:
+    """The probe as a tone-mapped lat-long image (rows × 2·rows, display-encoded float RGB in [0, 1]) with each
+    light's cap outlined (the pixels within half a pixel of its radius) and its centre marked."""
+    from .tonemap import auto_exposure, tonemap
+
+    work = env.to(LATLONG, rows)
+    display = tonemap(work.data, auto_exposure(work.data, work.solid_angles())).astype(np.float64)
+    dirs = _unit(*np.meshgrid((np.arange(rows) + 0.5) / rows * np.pi,
+                              _column_phi(np.arange(2 * rows), 2 * rows), indexing="ij"))
+    pitch = np.pi / rows
+    for light in lights:
+        angle = np.arccos(np.clip(dirs @ light.direction, -1.0, 1.0))
+        ring = np.abs(angle - light.radius) <= 0.5 * pitch / np.maximum(np.sin(angle), 0.5)
+        centre = angle <= 0.75 * pitch
+        display[ring | centre] = OUTLINE
+    return display
