@@ -179,8 +179,9 @@ def _one_pixel_sun(grid: tuple[int, int], d: np.ndarray) -> EnvMap:
 def _polar_sun_errors() -> dict[str, float]:
     """Worst |∫L dω error| of a one-pixel sun at angles from a lat-long pole, converted to a cube."""
     errors = {}
-    for label, theta in (("first row", 0.2), ("1°", 1.0), ("2°", 2.0), ("5°", 5.0), ("10°", 10.0), ("20°", 20.0),
-                         ("45°", 45.0), ("90°", 90.0)):
+    angles = (("first row (0.2°)", 0.2), ("2°", 2.0), ("3°", 3.0), ("5°", 5.0), ("10°", 10.0), ("20°", 20.0),
+              ("45°", 45.0), ("90°", 90.0))
+    for label, theta in angles:
         worst = 0.0
         for azimuth in (0.6, 2.2):
             t = np.radians(theta)
