@@ -85,7 +85,7 @@ def test_nothing_stands_out_in_a_uniform_or_black_map(value):
                                          ("debevec/cross/stpeters_cross.hdr", 17)])
 def test_light_counts_near_the_papers_table_1(name, paper):
     """Table 1 of the paper: 8 / 4 / 17 lights for Galileo / Kitchen / St. Peter's with the same parameters.
-    (Grace, 10 in the paper, gives 6–7 here: the benchmark shows its pictures.)"""
+    (Grace, 10 in the paper, gives 7–8 here: the benchmark will show its pictures.)"""
     dec = decompose(read_envmap(shared(name)))
     assert abs(len(dec.lights) - paper) <= 1, len(dec.lights)
 
@@ -159,11 +159,11 @@ def test_a_uniform_map_gives_no_lights_and_all_ambient(tmp_path, capsys):
 
 def test_the_same_probe_in_two_layouts_gives_the_same_lights():
     """Issue 10: Galileo as an angular map and as a cross — the same lights, centres within a working pixel
-    (0.35°), the same radii, powers within 1 % (each taken from its own file's pixels and solid angles)."""
+    (0.7°), the same radii, powers within 1 % (each taken from its own file's pixels and solid angles)."""
     a = decompose(read_envmap(shared("debevec/angular/galileo_probe.hdr")))
     b = decompose(read_envmap(shared("debevec/cross/galileo_cross.hdr")))
     assert len(a.lights) == len(b.lights)
     for la, lb in zip(a.lights, b.lights):
-        assert np.degrees(np.arccos(np.clip(la.direction @ lb.direction, -1, 1))) <= 0.36
+        assert np.degrees(np.arccos(np.clip(la.direction @ lb.direction, -1, 1))) <= 0.71
         assert la.radius == pytest.approx(lb.radius)
         np.testing.assert_allclose(la.power, lb.power, rtol=0.01)

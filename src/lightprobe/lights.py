@@ -42,7 +42,7 @@ class LightParams:
     candidate_fraction: float = 0.10  # candidate centres: the brightest fraction of working pixels
     stop_fraction: float = 0.02  # stop when a light has under this share of the lights found before it
     max_lights: int = 256  # a bound on the loop (the stopping rule ends it long before on real maps)
-    working_rows: int = 512  # the lat-long working grid (working_rows × 2·working_rows) the responses use
+    working_rows: int = 256  # the lat-long working grid (working_rows × 2·working_rows) the responses use
 
     def check(self) -> None:
         bad = []
