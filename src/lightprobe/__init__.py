@@ -30,6 +30,7 @@ _LAZY = {
     "export": "export", "irradiance_map": "irradiance", "brute_irradiance": "irradiance",
     "error_report": "irradiance", "prefilter_cube": "prefilter", "babylon_env": "containers",
     "read_image": "io", "write_image": "io",
+    "decompose": "lights", "LightParams": "lights", "AreaLight": "lights",
 }
 
 __all__ = ["LightprobeError", "InputError", "LayoutError", "LightprobeWarning", *_LAZY]
