@@ -1,0 +1,59 @@
+"""The point-light baselines (Debevec's median cut, solid-angle weighted): energy kept, regions of equal energy, a
+sun found where it is, bad counts refused."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import shared
+from lightprobe import read_envmap
+from lightprobe.baselines import median_cut
+from lightprobe.envmap import EnvMap
+from lightprobe.errors import UsageError
+from lightprobe.layouts import LATLONG
+
+
+def test_the_lights_carry_the_whole_map():
+    env = read_envmap(shared("debevec/cross/grace_cross.hdr"))
+    lights = median_cut(env, 64)
+    assert len(lights) == 64
+    total = np.sum([light.power for light in lights], axis=0)
+    np.testing.assert_allclose(total, env.to(LATLONG, 256).integral(), rtol=1e-12)  # the working map's, exactly
+    np.testing.assert_allclose(total, env.integral(), rtol=1e-4)  # the resampling keeps ∫L dω
+    assert all(abs(np.linalg.norm(light.direction) - 1) < 1e-12 for light in lights)
+
+
+def test_regions_of_a_uniform_sky_hold_equal_energy():
+    """Each cut halves the luminance power (solid-angle weighted), so a uniform sky's 16 regions hold 1/16 each, to
+    the size of one row or column of pixels."""
+    env = EnvMap(np.ones((128, 256, 3), np.float32), LATLONG)
+    powers = np.array([light.power[0] for light in median_cut(env, 16, rows=128)])
+    np.testing.assert_allclose(powers, 4 * np.pi / 16, rtol=0.05)
+    assert len(median_cut(env, 1, rows=128)) == 1
+
+
+def test_the_lights_crowd_onto_a_sun():
+    h = 128
+    data = np.full((h, 2 * h, 3), 0.05, np.float32)
+    theta = (np.arange(h) + 0.5) / h * np.pi
+    phi = 2 * np.pi * ((np.arange(2 * h) + 0.5) / (2 * h) - 0.5)
+    t, p = np.meshgrid(theta, phi, indexing="ij")
+    dirs = np.stack([np.sin(t) * np.sin(p), np.cos(t), -np.sin(t) * np.cos(p)], axis=-1)
+    sun = np.array([0.4, 0.5, -0.77]) / np.linalg.norm([0.4, 0.5, -0.77])
+    inside = dirs @ sun >= np.cos(np.radians(2.0))
+    data[inside] = 2000.0
+    env = EnvMap(data, LATLONG)
+    lights = median_cut(env, 16, rows=128)
+    sun_power = float((data[inside, 0] * LATLONG.row_solid_angles((h, 2 * h))[np.nonzero(inside)[0]]).sum())
+    near = [light for light in lights if np.degrees(np.arccos(min(1.0, light.direction @ sun))) < 3.0]
+    # each cut halves the energy and the sun has 92 % of it: the cuts close in on the sun until its regions are
+    # single pixels, which are not cut (so fewer than 16 lights come back)
+    assert 4 <= len(near) and len(lights) <= 16
+    assert sum(light.power[0] for light in near) >= 0.95 * sun_power
+
+
+@pytest.mark.parametrize("count", [0, 3, 5000, 2.5, -4])
+def test_a_count_that_is_not_a_power_of_two_is_refused(count):
+    with pytest.raises(UsageError, match="power of two"):
+        median_cut(EnvMap(np.ones((16, 32, 3), np.float32), LATLONG), count)
