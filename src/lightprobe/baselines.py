@@ -27,6 +27,19 @@ class PointLight:
 
     direction: np.ndarray
     power: np.ndarray
+    radius: float = 0.0  # a point: no cap (what the preview draws is its centre)
+
+    @property
+    def yaw_elevation_deg(self) -> tuple[float, float]:
+        from .lights import yaw_elevation_deg
+
+        return yaw_elevation_deg(self.direction)
+
+
+def check_count(count) -> None:
+    """Refuse a light count median cut cannot make (a power of two up to :data:`MAX_POINT_LIGHTS`)."""
+    if not isinstance(count, (int, np.integer)) or count < 1 or count > MAX_POINT_LIGHTS or count & (count - 1):
+        raise UsageError(f"median cut needs a power of two from 1 to {MAX_POINT_LIGHTS} lights, got {count!r}")
 
 
 def median_cut(env: EnvMap, count: int, rows: int = 256) -> list[PointLight]:
@@ -35,8 +48,7 @@ def median_cut(env: EnvMap, count: int, rows: int = 256) -> list[PointLight]:
     power on either side is equal; one light per region at its energy centroid, with the region's RGB power. A
     region of one pixel is not cut, so a map whose energy sits in fewer pixels than ``count`` gives fewer lights.
     The powers add up to ∫ of the working map (the resampled map: ∫L dω kept to ~1e-4)."""
-    if not isinstance(count, (int, np.integer)) or count < 1 or count > MAX_POINT_LIGHTS or count & (count - 1):
-        raise UsageError(f"median cut needs a power of two from 1 to {MAX_POINT_LIGHTS} lights, got {count!r}")
+    check_count(count)
     work = env if env.layout == LATLONG and env.grid[0] == rows else env.to(LATLONG, rows)
     h, w = work.grid
     omega = LATLONG.row_solid_angles(work.grid)[:, None]

@@ -86,9 +86,14 @@ class AreaLight:
 
     @property
     def yaw_elevation_deg(self) -> tuple[float, float]:
-        """Yaw (degrees, 0 at the front −Z, positive towards +X) and elevation (degrees above the horizon)."""
-        x, y, z = self.direction
-        return math.degrees(math.atan2(x, -z)), math.degrees(math.asin(max(-1.0, min(1.0, y))))
+        return yaw_elevation_deg(self.direction)
+
+
+def yaw_elevation_deg(direction: np.ndarray) -> tuple[float, float]:
+    """Yaw (degrees, 0 at the front −Z, positive towards +X) and elevation (degrees above the horizon) of a world
+    direction."""
+    x, y, z = direction
+    return math.degrees(math.atan2(x, -z)), math.degrees(math.asin(max(-1.0, min(1.0, float(y)))))
 
 
 @dataclass

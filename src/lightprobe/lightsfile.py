@@ -13,7 +13,9 @@ Schema ``{"format": "lightprobe.lights", "version": 1, ...}``:
   carry;
 * ``total_power`` (RGB ∫ map dω) and ``shares``: the fractions of the total luminance power in the lights and in
   the ambient (they sum to 1; Σ light power + ambient power = total power per channel, to float rounding);
-* ``parameters``: every parameter of the search (:class:`lightprobe.lights.LightParams`), ``method``;
+* ``parameters``: every parameter of the search (:class:`lightprobe.lights.LightParams`), ``method``
+  (``arbree2005``; or ``mediancut``, whose point lights have radius and solid angle 0, radiance and response null,
+  and ``ambient`` null: they carry the whole map; its parameters are ``count`` and ``working_rows``);
 * ``timings`` (seconds) and ``source`` (the map, or null).
 """
 
@@ -25,6 +27,7 @@ import json
 import numpy as np
 
 from .frames import WORLD
+from .baselines import PointLight
 from .lights import Decomposition
 from .sh import SHCoeffs
 from .shfile import sh_document
@@ -54,3 +57,23 @@ def lights_document(dec: Decomposition, ambient_sh: SHCoeffs, source: str | None
 
 def lights_json(dec: Decomposition, ambient_sh: SHCoeffs, source: str | None = None) -> str:
     return json.dumps(lights_document(dec, ambient_sh, source), indent=1, allow_nan=False) + "\n"
+
+
+def point_lights_document(lights: list[PointLight], total: np.ndarray, method: str, parameters: dict,
+                          timings: dict, source: str | None = None) -> dict:
+    """The schema's object for point lights (a baseline such as median cut): each light's radius and solid angle
+    are 0, its radiance and response null; there is no separate ambient (``ambient`` null): the lights carry the
+    whole map."""
+    total_y = float(luminance(total))
+    powers = np.sum([light.power for light in lights], axis=0) if lights else np.zeros(3)
+    share = float(luminance(powers)) / total_y if total_y > 0 else 0.0
+    out = []
+    for light in lights:
+        yaw, elevation = light.yaw_elevation_deg
+        out.append({"direction": [float(v) for v in light.direction], "yaw_deg": yaw, "elevation_deg": elevation,
+                    "angular_radius_deg": 0.0, "solid_angle_sr": 0.0, "power": [float(v) for v in light.power],
+                    "radiance": None, "response": None})
+    return {"format": FORMAT, "version": VERSION, "frame": WORLD.name, "frame_description": WORLD.description,
+            "method": method, "lights": out, "ambient": None, "total_power": [float(v) for v in total],
+            "shares": {"lights": share, "ambient": 1.0 - share}, "parameters": dict(parameters),
+            "timings": dict(timings), "source": source}
