@@ -60,6 +60,12 @@ class Steps:
     row: np.ndarray  # the pixel centre's source row coordinate (row r's centre at r)
 
 
+def no_steps() -> Steps:
+    """Steps of no pixel: nothing measured (:func:`samples_needed` then keeps its floor)."""
+    empty = np.zeros(0)
+    return Steps(empty, empty, empty, empty)
+
+
 def measure_steps(source: Layout, source_grid: tuple[int, ...], target: Layout, grid: tuple[int, ...],
                   rotation: np.ndarray | None) -> Steps:
     """:class:`Steps` on a sample of the target's pixels (every stride-th, and every one near a latlong source's

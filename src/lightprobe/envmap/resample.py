@@ -146,11 +146,13 @@ def supersampling(source: Layout, source_grid: tuple[int, ...], target: Layout, 
     than the ratio says (a turned grid): :func:`lightprobe.envmap.polar.samples_needed` on the measured steps."""
     filled = _face_layout(target)
     filled_grid = filled.grid_shape(target.size_of(grid))
+    ratio = _valid_pixels(source, source_grid) / max(_valid_pixels(target, grid), 1)
+    if source.name != "latlong":  # the steps serve only a lat-long source (its k and its polar rows): not measured
+        return samples or auto_samples(ratio), polar.no_steps()
     steps = polar.measure_steps(source, source_grid, filled, filled_grid, rotation)
     if samples:
         return samples, steps
-    ratio = _valid_pixels(source, source_grid) / max(_valid_pixels(target, grid), 1)
-    if source.name != "latlong" or filled.valid_fraction < 1.0:
+    if filled.valid_fraction < 1.0:
         # Measured only from a lat-long into a lat-long or cube (a turned lat-long's equator lands further apart than
         # the ratio says). A disc's rim, as source or target, is one direction spread over a ring — the steps there
         # grow without bound and the measured rate would be the cap — and a cube's corner texels are a fifth of its
