@@ -8,7 +8,7 @@ import pytest
 
 from conftest import shared
 from lightprobe import read_envmap
-from lightprobe.baselines import median_cut
+from lightprobe.baselines import median_cut, variance_minimisation
 from lightprobe.envmap import EnvMap
 from lightprobe.errors import UsageError
 from lightprobe.layouts import LATLONG
@@ -57,3 +57,47 @@ def test_the_lights_crowd_onto_a_sun():
 def test_a_count_that_is_not_a_power_of_two_is_refused(count):
     with pytest.raises(UsageError, match="power of two"):
         median_cut(EnvMap(np.ones((16, 32, 3), np.float32), LATLONG), count)
+
+
+def _regions_variance(env, lights):
+    """Σ over pixels of e·angle² to the light standing for them (the nearest), for comparing the two baselines."""
+    work = env.to(LATLONG, 64)
+    e = np.maximum(work.data[..., 0].astype(np.float64), 0) * LATLONG.row_solid_angles(work.grid)[:, None]
+    dirs = work.directions().reshape(-1, 3)
+    light_dirs = np.array([light.direction for light in lights])
+    angle = np.arccos(np.clip(dirs @ light_dirs.T, -1, 1)).min(axis=1)
+    return float((e.ravel() * angle ** 2).sum())
+
+
+def test_variance_minimisation_keeps_the_energy_and_beats_median_cut_on_variance():
+    env = read_envmap(shared("debevec/cross/grace_cross.hdr"))
+    vm = variance_minimisation(env, 16)
+    assert len(vm) == 16
+    np.testing.assert_allclose(np.sum([light.power for light in vm], axis=0), env.to(LATLONG, 256).integral(),
+                               rtol=1e-12)
+    # what it minimises, measured independently: energy × squared angle from each pixel to its nearest light
+    assert _regions_variance(env, vm) < 0.9 * _regions_variance(env, median_cut(env, 16))
+
+
+def test_variance_minimisation_puts_a_light_on_a_small_sun():
+    h = 128
+    data = np.full((h, 2 * h, 3), 0.05, np.float32)
+    env0 = EnvMap(data, LATLONG)
+    dirs = env0.directions()
+    sun = np.array([-0.6, 0.3, 0.5]) / np.linalg.norm([-0.6, 0.3, 0.5])
+    inside = dirs @ sun >= np.cos(np.radians(3.0))
+    data[inside] = 500.0
+    env = EnvMap(data, LATLONG)
+    lights = variance_minimisation(env, 8, rows=128)
+    sun_power = env.integral()[0] - 0.05 * (4 * np.pi - float(env.solid_angles()[inside].sum()))
+    near = [light for light in lights if np.degrees(np.arccos(min(1.0, light.direction @ sun))) < 3.0]
+    assert near and sum(light.power[0] for light in near) >= 0.9 * sun_power
+    # a uniform sky: each region's variance is what it is, every region still split, energy kept
+    uniform = variance_minimisation(EnvMap(np.ones((64, 128, 3), np.float32), LATLONG), 16, rows=64)
+    assert len(uniform) == 16
+    np.testing.assert_allclose(sum(light.power[0] for light in uniform), 4 * np.pi, rtol=1e-3)
+
+
+def test_variance_minimisation_of_a_black_map_is_one_dark_light():
+    lights = variance_minimisation(EnvMap(np.zeros((32, 64, 3), np.float32), LATLONG), 8, rows=32)
+    assert len(lights) == 1 and not lights[0].power.any()

@@ -169,24 +169,26 @@ def test_the_same_probe_in_two_layouts_gives_the_same_lights():
         np.testing.assert_allclose(la.power, lb.power, rtol=0.01)
 
 
-def test_median_cut_from_the_command_line(tmp_path, capsys):
-    """``lights --method mediancut --count N``: N point lights (radius 0, radiance null) carrying the whole map, no
-    ambient; a count that is not a power of two, or --ambient with median cut, is one line and nothing written."""
+@pytest.mark.parametrize("method", ["mediancut", "varmin"])
+def test_point_lights_from_the_command_line(tmp_path, capsys, method):
+    """``lights --method mediancut|varmin --count N``: N point lights (radius 0, radiance null) carrying the whole
+    map, no ambient; a count that is not a power of two, or --ambient, is one line and nothing written."""
     import json
 
     src = shared("debevec/cross/grace_cross.hdr")
     out = tmp_path / "mc.json"
-    code, said, err = _run(capsys, "lights", src, "-o", out, "--method", "mediancut", "--count", 16,
+    code, said, err = _run(capsys, "lights", src, "-o", out, "--method", method, "--count", 16,
                            "--preview", tmp_path / "mc.png")
     assert code == 0, err
+    assert (tmp_path / "mc.png").stat().st_size > 1000
     doc = json.loads(out.read_text())
-    assert doc["method"] == "mediancut" and doc["ambient"] is None and len(doc["lights"]) == 16
+    assert doc["method"] == method and doc["ambient"] is None and len(doc["lights"]) == 16
     assert all(light["angular_radius_deg"] == 0 and light["radiance"] is None for light in doc["lights"])
     powers = np.sum([light["power"] for light in doc["lights"]], axis=0)
     np.testing.assert_allclose(powers, read_envmap(src).integral(), rtol=1e-4)
     assert doc["shares"]["lights"] == pytest.approx(1.0, abs=1e-4) and doc["parameters"]["count"] == 16
     for argv in (["--count", "12"], ["--ambient", tmp_path / "a.exr"]):
-        code, _, err = _run(capsys, "lights", src, "-o", tmp_path / "bad.json", "--method", "mediancut", *argv)
+        code, _, err = _run(capsys, "lights", src, "-o", tmp_path / "bad.json", "--method", method, *argv)
         lines = err.strip().splitlines()
         assert code == 2 and len(lines) == 1 and lines[0].startswith("lightprobe: error: "), err
         assert not (tmp_path / "bad.json").exists() and not (tmp_path / "a.exr").exists()

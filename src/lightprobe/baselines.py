@@ -1,8 +1,14 @@
-"""The point-light baselines users reach for today, with solid-angle weighting: Debevec's median cut (2005).
+"""The point-light baselines users reach for today, with solid-angle weighting: Debevec's median cut (2005) and
+Viriyothai & Debevec's variance minimisation (2009).
 
 Quantities as in :mod:`lightprobe.lights`: directions in the world frame, ``power`` RGB ∫L dω of the region a light
 stands for. The map is first resampled (energy-conservingly) to a lat-long working grid; its pixels' luminance ×
-solid angle go into a summed-area table, so every region's energy and every candidate cut is O(1) or O(side).
+solid angle go into summed-area tables, so every region's energy and every candidate cut is O(1) or O(side).
+
+Both split every region at each step, so both give 2^k lights; they differ in where a region is cut. Median cut
+halves the energy across the longer side; variance minimisation tries every cut of either side and takes the one
+whose two halves have the least summed energy-weighted variance of direction, Σ e·|x − centroid|², i.e. the cut
+after which each light best stands for the pixels it replaces.
 """
 
 from __future__ import annotations
@@ -37,9 +43,26 @@ class PointLight:
 
 
 def check_count(count) -> None:
-    """Refuse a light count median cut cannot make (a power of two up to :data:`MAX_POINT_LIGHTS`)."""
+    """Refuse a light count the baselines cannot make (a power of two up to :data:`MAX_POINT_LIGHTS`): both split
+    every region at each step."""
     if not isinstance(count, (int, np.integer)) or count < 1 or count > MAX_POINT_LIGHTS or count & (count - 1):
-        raise UsageError(f"median cut needs a power of two from 1 to {MAX_POINT_LIGHTS} lights, got {count!r}")
+        raise UsageError(f"median cut and variance minimisation need a power of two from 1 to "
+                         f"{MAX_POINT_LIGHTS} lights, got {count!r}")
+
+
+def _working(env: EnvMap, rows: int) -> tuple[EnvMap, np.ndarray, np.ndarray]:
+    """The lat-long working map, each pixel's RGB ∫L dω, and its luminance power (clamped at 0)."""
+    work = env if env.layout == LATLONG and env.grid[0] == rows else env.to(LATLONG, rows)
+    omega = LATLONG.row_solid_angles(work.grid)[:, None]
+    rgb = work.data.astype(np.float64) * omega[..., None]
+    return work, rgb, np.maximum(luminance(rgb), 0.0)
+
+
+def _table(values: np.ndarray) -> np.ndarray:
+    """Summed-area table with a zero first row and column: region sums are four lookups."""
+    table = np.zeros((values.shape[0] + 1, values.shape[1] + 1))
+    table[1:, 1:] = values.cumsum(axis=0).cumsum(axis=1)
+    return table
 
 
 def median_cut(env: EnvMap, count: int, rows: int = 256) -> list[PointLight]:
@@ -49,13 +72,9 @@ def median_cut(env: EnvMap, count: int, rows: int = 256) -> list[PointLight]:
     region of one pixel is not cut, so a map whose energy sits in fewer pixels than ``count`` gives fewer lights.
     The powers add up to ∫ of the working map (the resampled map: ∫L dω kept to ~1e-4)."""
     check_count(count)
-    work = env if env.layout == LATLONG and env.grid[0] == rows else env.to(LATLONG, rows)
+    work, rgb, energy = _working(env, rows)
     h, w = work.grid
-    omega = LATLONG.row_solid_angles(work.grid)[:, None]
-    rgb = work.data.astype(np.float64) * omega[..., None]  # each pixel's RGB ∫L dω
-    energy = np.maximum(luminance(rgb), 0.0)
-    table = np.zeros((h + 1, w + 1))
-    table[1:, 1:] = energy.cumsum(axis=0).cumsum(axis=1)
+    table = _table(energy)
     regions = [(0, h, 0, w)]  # rows [r0, r1), columns [c0, c1)
     for _ in range(int(math.log2(count))):
         regions = [half for region in regions for half in _split(table, region, h)]
@@ -100,6 +119,65 @@ def _halfway(cumulative: np.ndarray, total: float) -> int:
     if total <= 0:
         return (cumulative.size - 1) // 2
     return int(min(np.searchsorted(cumulative, total / 2), cumulative.size - 1))
+
+
+def variance_minimisation(env: EnvMap, count: int, rows: int = 256) -> list[PointLight]:
+    """Viriyothai & Debevec's variance minimisation: split the lat-long map ``log2(count)`` times, every region by
+    the cut (any row or column boundary inside it) that minimises the two halves' summed variance
+    Σ e·((sin θ_m·(φ − φ̄))² + (θ − θ̄)²) — e the pixels' luminance power, θ_m each half's middle latitude, so
+    distances are angles on the sphere near that latitude. One light per region at its energy centroid with the
+    region's RGB power (Σ = ∫ of the working map). A region of one pixel, or one without energy, is not cut."""
+    check_count(count)
+    work, rgb, energy = _working(env, rows)
+    h, w = work.grid
+    theta = (np.arange(h) + 0.5) / h * np.pi
+    phi = (np.arange(w) + 0.5) / w * 2 * np.pi
+    tables = _Moments(energy, theta, phi)
+    regions = [(0, h, 0, w)]
+    for _ in range(int(math.log2(count))):
+        regions = [half for region in regions for half in tables.split(region)]
+    return [_light(work, rgb, energy, region) for region in regions]
+
+
+class _Moments:
+    """Summed-area tables of e, eφ, eφ², eθ, eθ² (float64): any region's variance in O(1), every cut of one side
+    of a region in O(side)."""
+
+    def __init__(self, energy: np.ndarray, theta: np.ndarray, phi: np.ndarray):
+        t, p = theta[:, None], phi[None, :]
+        self.h = energy.shape[0]
+        self.e, self.ep, self.epp = _table(energy), _table(energy * p), _table(energy * p * p)
+        self.et, self.ett = _table(energy * t), _table(energy * t * t)
+
+    def variance(self, r0, r1, c0, c1):
+        """Energy-weighted variance of the regions rows [r0, r1) × columns [c0, c1) (arrays broadcast)."""
+        def box(table):
+            return table[r1, c1] - table[r0, c1] - table[r1, c0] + table[r0, c0]
+
+        e = box(self.e)
+        safe = np.where(e > 0, e, 1.0)
+        across = box(self.epp) - box(self.ep) ** 2 / safe
+        down = box(self.ett) - box(self.et) ** 2 / safe
+        width = np.sin(np.pi * (np.asarray(r0) + r1) / 2 / self.h)
+        return np.where(e > 0, np.maximum(width * width * across, 0.0) + np.maximum(down, 0.0), 0.0)
+
+    def split(self, region):
+        r0, r1, c0, c1 = region
+        if r1 - r0 < 2 and c1 - c0 < 2 or self.variance(r0, r1, c0, c1) <= 0:
+            return [region]
+        best, cut = np.inf, None
+        if c1 - c0 >= 2:
+            cs = np.arange(c0 + 1, c1)
+            cost = self.variance(r0, r1, c0, cs) + self.variance(r0, r1, cs, c1)
+            k = int(np.argmin(cost))
+            best, cut = cost[k], [(r0, r1, c0, int(cs[k])), (r0, r1, int(cs[k]), c1)]
+        if r1 - r0 >= 2:
+            rs = np.arange(r0 + 1, r1)
+            cost = self.variance(r0, rs, c0, c1) + self.variance(rs, r1, c0, c1)
+            k = int(np.argmin(cost))
+            if cost[k] < best:
+                cut = [(r0, int(rs[k]), c0, c1), (int(rs[k]), r1, c0, c1)]
+        return cut
 
 
 def _light(work: EnvMap, rgb: np.ndarray, energy: np.ndarray, region) -> PointLight:

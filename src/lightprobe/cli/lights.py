@@ -7,6 +7,7 @@ from pathlib import Path
 from .common import Number, add_option, add_probe, load, refuse, write_text
 
 MAX_AMBIENT_ORDER = 16
+POINT_METHODS = {"mediancut": "median cut", "varmin": "variance minimisation"}
 WORKING_BYTES_PER_PIXEL = 80  # the ambient copy, directions and solid angles of every pixel
 
 
@@ -22,9 +23,10 @@ def register(sub) -> None:
     p.add_argument("--output", "-o", type=Path, required=True, help="the lights JSON")
     p.add_argument("--method", choices=LIGHT_METHODS, default="arbree2005",
                    help="arbree2005: area lights + ambient (the paper); mediancut: Debevec's 2^k point lights "
-                        "carrying the whole map (a baseline)")
+                        "carrying the whole map (a baseline); varmin: Viriyothai & Debevec's variance "
+                        "minimisation, the same but cut where each light best stands for its pixels")
     add_option(p, "--count", type=Number(int, 1, 4096), default=16,
-               help="number of lights for --method mediancut (a power of two)")
+               help="number of lights for --method mediancut or varmin (a power of two)")
     p.add_argument("--ambient", type=Path, help="also write the ambient map (the input's layout) to this image")
     p.add_argument("--preview", type=Path, help="also write a PNG of the probe with each light's cap outlined")
     add_option(p, "--ambient-order", type=Number(int, 0, MAX_AMBIENT_ORDER), default=2,
@@ -56,18 +58,18 @@ def run(args) -> None:
                          min_extent_deg=args.min_extent, max_extent_deg=args.max_extent,
                          candidate_fraction=args.candidates, stop_fraction=args.stop)
     params.check()
-    if args.method == "mediancut":
+    if args.method in POINT_METHODS:
         from ..baselines import check_count
 
         check_count(args.count)
         if args.ambient is not None:
-            refuse("--ambient: median cut has no ambient map (its point lights carry the whole map)")
+            refuse(f"--ambient: {POINT_METHODS[args.method]} has no ambient map (its point lights carry the whole map)")
     for path in (args.output, args.ambient, args.preview):
         if path is not None:
             check_output(path, inputs, text=path == args.output)
     env = load(args.file, args.layout, working_bytes_per_pixel=WORKING_BYTES_PER_PIXEL, kernels=True)
-    if args.method == "mediancut":
-        _median_cut(args, env, inputs)
+    if args.method in POINT_METHODS:
+        _point_lights(args, env, inputs)
         return
     dec = decompose(env, params)
     text = lights_json(dec, project(dec.ambient, args.ambient_order), str(args.file or "(shipped probe)"))
@@ -79,23 +81,24 @@ def run(args) -> None:
     print(f"wrote {args.output} ({len(dec.lights)} lights, {100 * (1 - _ambient_share(text)):.0f} % of the power)")
 
 
-def _median_cut(args, env, inputs) -> None:
+def _point_lights(args, env, inputs) -> None:
     import json
     import time
 
-    from ..baselines import median_cut
+    from ..baselines import median_cut, variance_minimisation
     from ..io import write_image
     from ..lights import preview
     from ..lightsfile import point_lights_document
 
+    name = POINT_METHODS[args.method]
     t0 = time.perf_counter()
-    lights = median_cut(env, args.count)
-    doc = point_lights_document(lights, env.integral(), "mediancut", {"count": args.count, "working_rows": 256},
-                                {"median cut": time.perf_counter() - t0}, str(args.file or "(shipped probe)"))
+    lights = (median_cut if args.method == "mediancut" else variance_minimisation)(env, args.count)
+    doc = point_lights_document(lights, env.integral(), args.method, {"count": args.count, "working_rows": 256},
+                                {name: time.perf_counter() - t0}, str(args.file or "(shipped probe)"))
     if args.preview is not None:
         write_image(args.preview, preview(env, lights), encoded=True, inputs=inputs)
     write_text(args.output, json.dumps(doc, indent=1, allow_nan=False) + "\n", inputs)
-    print(f"wrote {args.output} ({len(lights)} point lights by median cut)")
+    print(f"wrote {args.output} ({len(lights)} point lights by {name})")
 
 
 def _ambient_share(text: str) -> float:
