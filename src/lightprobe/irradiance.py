@@ -126,7 +126,9 @@ def irradiance_map(env: EnvMap, target: str | Layout, size: int, method: str = "
 # ---- error analysis -------------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class ErrorReport:
-    """SH irradiance against brute force on luminance, over normals spread uniformly on the sphere (SPEC §3)."""
+    """An irradiance method against brute force on luminance, over normals spread uniformly on the sphere (SPEC §3):
+    SH of order ``l_max`` with ``window`` (method ``sh``), or the hybrid of :mod:`lightprobe.hybrid` (lights exact,
+    ambient SH of order ``l_max``)."""
 
     l_max: int
     window: str
@@ -134,7 +136,8 @@ class ErrorReport:
     paper_max: float
     relative_mean: float  # |E − E_ref| / E_ref (per normal)
     relative_max: float
-    negative_fraction: float  # share of normals where the SH irradiance is negative in any channel (ringing)
+    negative_fraction: float  # share of normals where the irradiance is negative in any channel (ringing)
+    method: str = "sh"
 
 
 def reference_normals(count: int = 2000) -> np.ndarray:
@@ -149,12 +152,18 @@ def error_report(env: EnvMap, l_max: int = 2, window: str = "none", normals: np.
     ``reference`` (brute-force E at ``normals``) and ``sh`` (coefficients of order ≥ l_max) may be passed in to
     share work between several reports."""
     normals = reference_normals() if normals is None else normals
-    e_ref = luminance(brute_irradiance(env, normals) if reference is None else reference)
+    reference = brute_irradiance(env, normals) if reference is None else reference
     coeffs = (sh or project(env, l_max)).truncated(l_max).windowed(window)
-    e_sh_rgb = coeffs.to_irradiance().evaluate(normals)
-    e_sh = luminance(e_sh_rgb)
+    return compare_irradiance(env, coeffs.to_irradiance().evaluate(normals), reference, l_max, coeffs.window)
+
+
+def compare_irradiance(env: EnvMap, irradiance: np.ndarray, reference: np.ndarray, l_max: int, window: str = "none",
+                       method: str = "sh") -> ErrorReport:
+    """The error measures of any method's RGB irradiance at the normals where ``reference`` (brute force, RGB) was
+    taken."""
+    e, e_ref = luminance(irradiance), luminance(reference)
     total = float(luminance(env.integral()))
-    diff = np.abs(e_sh - e_ref)
+    diff = np.abs(e - e_ref)
     rel = diff / np.maximum(e_ref, 1e-12 * total)
-    return ErrorReport(l_max, coeffs.window, float(diff.mean() / total), float(diff.max() / total),
-                       float(rel.mean()), float(rel.max()), float(np.mean((e_sh_rgb < 0).any(axis=-1))))
+    return ErrorReport(l_max, window, float(diff.mean() / total), float(diff.max() / total), float(rel.mean()),
+                       float(rel.max()), float(np.mean((irradiance < 0).any(axis=-1))), method)

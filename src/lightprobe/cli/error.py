@@ -12,10 +12,15 @@ def register(sub) -> None:
     from ..names import WINDOWS
 
     p = sub.add_parser("error", help="SH irradiance error against brute force",
-                       description="Both error measures of SPEC 3 on luminance over uniformly spread normals: the "
+                       description="Both error measures of SPEC 3 on luminance over uniformly spread normals (SH or "
+                                   "the hybrid against brute force): the "
                                    "paper's |E - E_ref| / (integral of L) and the per-normal |E - E_ref| / E_ref.")
     add_probe(p)
-    add_option(p, "--order", type=NumberList(int, 0, MAX_ORDER, 8), default="2", help="l_max, or a list such as 2,4,6")
+    add_option(p, "--order", type=NumberList(int, 0, MAX_ORDER, 8), default=None,
+               help="l_max, or a list such as 2,4,6 (default 2; with --method hybrid 2,12: the ambient's orders)")
+    p.add_argument("--method", choices=("sh", "hybrid"), default="sh",
+                   help="sh: the map's SH; hybrid: area lights exact + SH of the ambient, each order beside SH "
+                        "alone of the same order")
     p.add_argument("--window", choices=WINDOWS + ("all",), default="all",
                    help="de-ringing window (default: every window, to show what each costs)")
     add_option(p, "--normals", type=Number(int, 16, 200000), default=2000, help="number of test normals")
@@ -29,24 +34,38 @@ def run(args) -> None:
     from ..irradiance import brute_irradiance, error_report, reference_normals
     from ..sh import WINDOWS, project
 
-    orders = args.order  # a list: argparse converts the default through the type too
+    hybrid = args.method == "hybrid"
+    if args.order is not None:
+        orders = args.order
+    else:
+        from ..hybrid import DEFAULT_AMBIENT_ORDER
+
+        orders = [2, DEFAULT_AMBIENT_ORDER] if hybrid else [2]
     env = load(args.file, args.layout, working_bytes_per_pixel=WORKING_BYTES_PER_PIXEL, kernels=True)
     normals = reference_normals(args.normals)
     reference = brute_irradiance(env, normals)
     sh = project(env, max(orders))
-    windows = WINDOWS if args.window == "all" else (args.window,)
+    windows = WINDOWS if args.window == "all" and not hybrid else ("none",) if hybrid else (args.window,)
     reports = [error_report(env, o, w, normals, reference, sh) for o in orders for w in windows]
+    if hybrid:
+        from ..hybrid import hybrid_error_report, hybrid_irradiance
+        from ..lights import decompose
+
+        dec = decompose(env)
+        reports += [hybrid_error_report(env, normals, reference, hybrid_irradiance(env, dec, o)) for o in orders]
+        reports.sort(key=lambda r: r.l_max)
     if args.json:
         print_json([asdict(r) for r in reports])
         return
     from rich.console import Console
     from rich.table import Table
 
-    table = Table(title=f"SH irradiance vs brute force, {args.normals} normals, luminance")
-    for col in ("order", "window", "paper mean", "paper max", "relative mean", "relative max", "E < 0"):
+    what = "SH and hybrid irradiance" if hybrid else "SH irradiance"
+    table = Table(title=f"{what} vs brute force, {args.normals} normals, luminance")
+    for col in ("method", "order", "window", "paper mean", "paper max", "relative mean", "relative max", "E < 0"):
         table.add_column(col, justify="right")
     for r in reports:
-        table.add_row(str(r.l_max), r.window, f"{100 * r.paper_mean:.2f} %", f"{100 * r.paper_max:.2f} %",
+        table.add_row(r.method, str(r.l_max), r.window, f"{100 * r.paper_mean:.2f} %", f"{100 * r.paper_max:.2f} %",
                       f"{100 * r.relative_mean:.1f} %", f"{100 * r.relative_max:.1f} %",
                       f"{100 * r.negative_fraction:.1f} %")
     Console().print(table)

@@ -16,14 +16,19 @@ def register(sub) -> None:
 
     p = sub.add_parser("irradiance", help="irradiance map (SH or brute force)",
                        description="Irradiance E (not divided by pi) for every texel direction taken as a surface "
-                                   "normal, by SH (fast) or by brute-force integration of the whole map (exact).")
+                                   "normal, by SH (fast), by brute-force integration of the whole map (exact), "
+                                   "or by the hybrid (area lights exact + SH of the ambient).")
     add_probe(p, layout_flag="--in-layout")
     p.add_argument("--output", "-o", type=Path, required=True, help="output image (.exr, .hdr, .pfm, .png)")
     p.add_argument("--layout", dest="out_layout", choices=layout_names(), default="latlong", help="output layout")
     add_option(p, "--size", type=ImageSize(65536, single=True), default="64x32",
                help="N (the layout's size) or WxH of the output")
-    add_option(p, "--order", type=Number(int, 0, MAX_ORDER), default=2, help="SH order l_max for --method sh")
-    p.add_argument("--method", choices=("sh", "brute"), default="sh")
+    add_option(p, "--order", type=Number(int, 0, MAX_ORDER), default=None,
+               help="SH order l_max: of the map for --method sh (default 2), of the ambient for --method hybrid "
+                    "(default 12)")
+    p.add_argument("--method", choices=("sh", "brute", "hybrid"), default="sh",
+                   help="sh: the map's SH; brute: every pixel summed (exact); hybrid: the map's area lights "
+                        "(Arbree et al. 2005) summed exactly plus SH of the ambient")
     p.add_argument("--window", choices=WINDOWS, default="none", help="de-ringing window for --method sh")
     p.set_defaults(run=run)
 
@@ -52,6 +57,11 @@ def run(args) -> None:
     pixels = check_size(lay, size)
     env = load(args.file, args.layout, working_bytes_per_pixel=INPUT_WORKING_BYTES_PER_PIXEL,
                extra_bytes=pixels * OUTPUT_BYTES_PER_PIXEL)
-    out = irradiance_map(env, lay, size, args.method, args.order, args.window)
+    if args.method == "hybrid":
+        from ..hybrid import DEFAULT_AMBIENT_ORDER, hybrid_irradiance_map
+
+        out = hybrid_irradiance_map(env, lay, size, DEFAULT_AMBIENT_ORDER if args.order is None else args.order)
+    else:
+        out = irradiance_map(env, lay, size, args.method, 2 if args.order is None else args.order, args.window)
     out.to_envmap_image().save(args.output, inputs=[args.file])
     print(f"wrote {args.output} (irradiance, {args.method}, {lay.name} size {size})")

@@ -1,0 +1,109 @@
+"""Hybrid irradiance: the area lights integrated exactly over their pixels, plus SH of the ambient (no shadows).
+
+Quantities as in :mod:`lightprobe.irradiance`: E(n) is irradiance (not /π), normals world-frame unit vectors.
+
+Why it is accurate where SH alone is not: the lights hold the map's high frequencies (a sun is what makes SH9 ring
+and miss by tens of percent); what is left, the ambient, is smooth enough for a low order. Why it is fast: a light's
+pixels all lie within its cap (radius r around d), so for a normal with n·d ≥ sin r every one of them is above the
+horizon and its clamped cosine is the plain cosine — the light's irradiance is the linear form n·V with
+V = Σ L ω Δω over its pixels, exactly. Only the normals whose horizon cuts a cap (|n·d| < sin r) sum that light's
+pixels one by one; those with n·d ≤ −sin r get nothing from it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .envmap import EnvMap
+from .irradiance import ErrorReport, IrradianceMap, compare_irradiance
+from .layouts import layout as layout_named
+from .lights import Decomposition, LightParams, decompose
+from .sh import SHCoeffs, project
+
+# The ambient's SH order by default: the least that keeps the hybrid within 1 % mean / 5 % max of brute force on
+# the eight probes of tests/test_hybrid.py (outdoor maps with a bright horizon need more than order 2: the horizon
+# is a sharp edge the lights do not take).
+DEFAULT_AMBIENT_ORDER = 12
+
+
+@dataclass(frozen=True, eq=False)
+class LightPixels:
+    """One light's pixels as the irradiance sum needs them: ``direction`` and ``radius`` (its cap), ``moment`` (3, 3)
+    with moment[c] = Σ L_c ω Δω (world frame), and the pixels themselves as (3, S) float32 directions and L·Δω."""
+
+    direction: np.ndarray
+    radius: float
+    moment: np.ndarray
+    dirs_t: np.ndarray
+    weights_t: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class HybridIrradiance:
+    """E(n) = ambient SH irradiance (order ``ambient.l_max``) + Σ over lights of their exact clamped-cosine sums.
+
+    ``ambient`` holds *irradiance* coefficients (already convolved with the clamped cosine: Â_l applied once)."""
+
+    ambient: SHCoeffs
+    lights: tuple[LightPixels, ...]
+
+    def evaluate(self, normals: np.ndarray) -> np.ndarray:
+        """Irradiance E (not /π) at world-frame unit normals (..., 3); returns (..., 3)."""
+        from .kernels import clamped_cosine_sums
+
+        normals = np.asarray(normals, dtype=np.float64)
+        n = normals.reshape(-1, 3)
+        out = np.asarray(self.ambient.evaluate(n), dtype=np.float64).reshape(-1, 3).copy()
+        for light in self.lights:
+            cos_to = n @ light.direction
+            bound = math.sin(light.radius)
+            above = cos_to >= bound
+            out[above] += n[above] @ light.moment.T
+            cut = np.nonzero(np.abs(cos_to) < bound)[0]
+            if cut.size:
+                part = np.zeros((cut.size, 3))
+                clamped_cosine_sums(np.ascontiguousarray(n[cut]), light.dirs_t, light.weights_t, part)
+                out[cut] += part
+        return out.reshape(normals.shape[:-1] + (3,))
+
+
+def hybrid_irradiance(env: EnvMap, decomposition: Decomposition | None = None,
+                      ambient_order: int = DEFAULT_AMBIENT_ORDER, params: LightParams | None = None
+                      ) -> HybridIrradiance:
+    """The hybrid irradiance of ``env`` (any layout): its decomposition (found here with ``params`` unless given —
+    it must be of this very map) split into each light's own pixels (a pixel belongs to the first light whose cap
+    holds it, as the extraction took them) and the ambient's SH of order ``ambient_order``."""
+    dec = decomposition if decomposition is not None else decompose(env, params)
+    ambient = project(dec.ambient, ambient_order).to_irradiance()
+    dirs = env.directions().reshape(-1, 3)
+    weighted = (env.data.astype(np.float64) - dec.ambient.data).reshape(-1, 3) * env.solid_angles().reshape(-1, 1)
+    free = np.any(weighted != 0, axis=1)
+    lights = []
+    for light in dec.lights:
+        mine = free & (dirs @ light.direction >= math.cos(light.radius))
+        free &= ~mine
+        d, w = dirs[mine], weighted[mine]
+        lights.append(LightPixels(np.asarray(light.direction, dtype=np.float64), float(light.radius), w.T @ d,
+                                  np.ascontiguousarray(d.T, dtype=np.float32),
+                                  np.ascontiguousarray(w.T, dtype=np.float32)))
+    return HybridIrradiance(ambient, tuple(lights))
+
+
+def hybrid_irradiance_map(env: EnvMap, target, size: int, ambient_order: int = DEFAULT_AMBIENT_ORDER,
+                          hybrid: HybridIrradiance | None = None) -> IrradianceMap:
+    """An irradiance map (E, not /π) of ``env`` by the hybrid, in layout ``target`` of ``size`` — the counterpart of
+    :func:`lightprobe.irradiance.irradiance_map` for ``method="hybrid"``."""
+    lay = layout_named(target)
+    grid = lay.grid_shape(size)
+    hybrid = hybrid or hybrid_irradiance(env, ambient_order=ambient_order)
+    values = hybrid.evaluate(lay.directions(grid))
+    return IrradianceMap(np.where(lay.valid_mask(grid)[..., None], values, 0.0).astype(np.float32), lay, "hybrid")
+
+
+def hybrid_error_report(env: EnvMap, normals: np.ndarray, reference: np.ndarray, hybrid: HybridIrradiance
+                        ) -> ErrorReport:
+    """Both error measures of SPEC §3 for the hybrid at ``normals``, against brute force ``reference`` (RGB)."""
+    return compare_irradiance(env, hybrid.evaluate(normals), reference, hybrid.ambient.l_max, "none", "hybrid")
