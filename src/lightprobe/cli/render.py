@@ -7,14 +7,15 @@ from pathlib import Path
 from .common import ImageSize, Number, add_option, probe_path, refuse
 
 MAX_ORDER = 32
-SPP_RANGES = {"sh": (1, 16), "brute": (1, 16), "reference": (1, 65536)}
-DEFAULT_SPP = {"sh": 2, "brute": 2, "reference": 256}
+SPP_RANGES = {"reference": (1, 65536)}  # the project's renderer: 1..16 per axis
+DEFAULT_SPP = {"reference": 256}  # the project's renderer: 2 per axis
 
 
 def register(sub) -> None:
     from ..names import RENDER_METHODS as METHODS, WINDOWS
 
-    p = sub.add_parser("render", help="render a scene or a mesh under a probe (sh, brute, or the Mitsuba reference)",
+    p = sub.add_parser("render", help="render a scene or a mesh under a probe (sh, brute, hybrid, lights, mediancut, varmin, "
+                            "or the Mitsuba reference)",
                        description="Render a scene file (.yaml/.json) or a mesh file (.obj, .ply, .glb, ...; placed on "
                                    "a ground plane) under a probe. Output: .exr (linear radiance) or .png (tone-mapped).")
     p.add_argument("scene", nargs="?", type=Path,
@@ -26,10 +27,20 @@ def register(sub) -> None:
     add_option(p, "--spp", type=Number(int, 1, 65536),
                help="sh/brute: spp×spp samples per pixel (1..16, default 2); reference: samples per pixel "
                     "(default 256)")
-    add_option(p, "--order", type=Number(int, 0, MAX_ORDER), default=2, help="SH order l_max")
+    add_option(p, "--order", type=Number(int, 0, MAX_ORDER), default=None,
+               help="SH order l_max: of the map for sh (default 2), of the ambient for lights and hybrid (12)")
     p.add_argument("--window", choices=WINDOWS, default="none", help="SH de-ringing window")
     p.add_argument("--per-vertex", action="store_true", help="SH evaluated at vertices and interpolated")
     p.add_argument("--gi", action="store_true", help="reference: full global illumination (default: direct only)")
+    add_option(p, "--light-samples", type=Number(int, 1, 1024), default=16,
+               help="lights: stratified shadow rays per light per shading point")
+    p.add_argument("--ao", action="store_true",
+                   help="lights: shadow the ambient too (brightness-weighted cosine occlusion rays)")
+    add_option(p, "--ao-samples", type=Number(int, 1, 1024), default=16, help="lights --ao: rays per shading point")
+    add_option(p, "--count", type=Number(int, 1, 4096), default=16,
+               help="mediancut, varmin: number of point lights (a power of two)")
+    add_option(p, "--seed", type=Number(int, 0, 2 ** 63 - 1), default=0,
+               help="lights: the random generator's seed (a render is the same bit for bit for the same seed)")
     add_option(p, "--exposure", type=Number(float, -64, 64), default=0.0, help="exposure in stops for .png output")
     p.set_defaults(run=run)
 
@@ -55,6 +66,25 @@ def scene_for(args):
     return scene
 
 
+def method_options(args) -> dict:
+    """The options of the chosen method, from the command line (checked: a bad count is one line, exit 2)."""
+    from ..hybrid import DEFAULT_AMBIENT_ORDER
+
+    if args.method in ("mediancut", "varmin"):
+        from ..baselines import check_count
+
+        check_count(args.count)
+        return {"count": args.count}
+    if args.method == "sh":
+        return {"order": 2 if args.order is None else args.order, "per_vertex": args.per_vertex,
+                "window": args.window}
+    order = DEFAULT_AMBIENT_ORDER if args.order is None else args.order
+    if args.method == "lights":
+        return {"light_samples": args.light_samples, "ao": args.ao, "ao_samples": args.ao_samples,
+                "seed": args.seed, "order": order}
+    return {"order": order} if args.method == "hybrid" else {}
+
+
 def run(args) -> None:
     from ..files import check_output
     from ..io import WRITE_FORMATS, write_image
@@ -65,10 +95,11 @@ def run(args) -> None:
         refuse(f"cannot write {args.output}: use one of {', '.join(WRITE_FORMATS)}")
     inputs = [p for p in (args.scene, args.probe) if p is not None]
     check_output(args.output, inputs)
-    spp = DEFAULT_SPP[args.method] if args.spp is None else args.spp
-    lo, hi = SPP_RANGES[args.method]
+    spp = DEFAULT_SPP.get(args.method, 2) if args.spp is None else args.spp
+    lo, hi = SPP_RANGES.get(args.method, (1, 16))
     if not lo <= spp <= hi:
         refuse(f"--spp for {args.method} must be within {lo}..{hi}, got {spp}")
+    options = method_options(args) if args.method != "reference" else {}
     if args.size is not None and args.method != "reference":  # refuse before reading anything when the size says so
         from ..limits import check_memory
         from ..render.renderer import render_memory
@@ -81,8 +112,6 @@ def run(args) -> None:
 
         result = reference_render(scene, spp, args.gi)
     else:
-        options = {"order": args.order, "per_vertex": args.per_vertex, "window": args.window} \
-            if args.method == "sh" else {}
         result = render(scene, method(args.method, **options), spp)
     write_image(args.output, result.image, exposure=args.exposure, curve="aces", inputs=inputs)
     total = sum(result.seconds.values())

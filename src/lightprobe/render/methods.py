@@ -1,25 +1,55 @@
 """Lighting methods: how a diffuse surface point is shaded under the scene's environment.
 
 A method turns hits into outgoing radiance, ``albedo · E / π`` for Lambertian surfaces, where E is what the method
-knows of the irradiance. This issue brings two; later ones (area lights with soft shadows, radiance maps) register
-more in :data:`METHODS`.
+knows of the irradiance (not /π). Methods are registered in :data:`METHODS`; stochastic ones take a ``seed`` and a
+sample budget, so a render is reproducible bit for bit from its seed.
 
 * ``sh`` — SH irradiance (any order, optional window): per pixel at the shading normal, or per vertex and
   interpolated across triangles as the paper's hardware shader did. No shadows: the whole environment lights
   every normal.
 * ``brute`` — exact irradiance at the shading normal, integrating every pixel of the map. Also no shadows: it is
   the exact value of what ``sh`` approximates, so their difference is SH's own error.
+* ``hybrid`` — the map's area lights summed exactly plus SH of the ambient (:mod:`lightprobe.hybrid`). No shadows.
+* ``lights`` — Arbree, Walter & Bala 2005: the ambient as SH irradiance plus each area light integrated over its
+  disc (uniform radiance: power / solid angle) with ``light_samples`` stratified shadow rays per shading point —
+  soft penumbrae. With ``ao`` the ambient is shadowed too (beyond the paper, whose §5 names that as its weakness):
+  see :func:`ambient_visibility`.
+* ``mediancut`` / ``varmin`` — ``count`` point lights carrying the whole map (Debevec 2005; Viriyothai & Debevec
+  2009), one shadow ray each: hard shadows, no separate ambient — what users do today.
+
+Shadow rays leave from the hit nudged along its geometric normal and go through Embree's occlusion query in batches
+of the whole frame (:meth:`lightprobe.render.raycast.Tracer.occluded`, every core); no Python loop per pixel.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from ..baselines import check_count, median_cut, variance_minimisation
 from ..errors import UsageError
+from ..hybrid import DEFAULT_AMBIENT_ORDER, hybrid_irradiance
 from ..irradiance import brute_irradiance
+from ..lights import LightParams, decompose
 from ..sh import SHCoeffs, project
+from ..tonemap import luminance
 from .raycast import Hits, Tracer
 from .scene import Scene
+
+MAX_SAMPLES = 1024  # shadow rays per light (or ambient-occlusion rays) per shading point
+RAYS_PER_BATCH = 1 << 20  # shadow rays generated at once (~100 MB of temporaries)
+
+
+class PerEnvironment:
+    """A value computed once per environment map. The key is the map itself, compared by identity: an ``id()``
+    alone can be reused by a new map once the old one is freed, which served one map's value for another."""
+
+    def __init__(self, make):
+        self.make, self._key, self._value = make, None, None
+
+    def get(self, env):
+        if self._key is not env:
+            self._value, self._key = self.make(env), env
+        return self._value
 
 
 class Method:
@@ -41,17 +71,11 @@ class SHMethod(Method):
 
     def __init__(self, order: int = 2, per_vertex: bool = False, window: str = "none"):
         self.order, self.per_vertex, self.window = order, per_vertex, window
-        self._cache: tuple[object, SHCoeffs] | None = None
+        self._sh = PerEnvironment(lambda env: project(env, self.order).windowed(self.window).to_irradiance())
 
     def coefficients(self, scene: Scene) -> SHCoeffs:
-        """Irradiance coefficients of the scene's environment (projected once per environment).
-
-        The cache holds the environment itself and compares identity: an ``id()`` alone can be reused by a new
-        map once the old one is freed, which served one map's coefficients for another."""
-        if self._cache is None or self._cache[0] is not scene.environment:
-            sh = project(scene.environment, self.order).windowed(self.window).to_irradiance()
-            self._cache = (scene.environment, sh)
-        return self._cache[1]
+        """Irradiance coefficients of the scene's environment (projected once per environment)."""
+        return self._sh.get(scene.environment)
 
     def shade(self, scene, tracer, hits):
         e = self.coefficients(scene)
@@ -88,7 +112,188 @@ class BruteMethod(Method):
         return "brute force: the whole map integrated at each pixel's normal (no shadows)"
 
 
-METHODS = {"sh": SHMethod, "brute": BruteMethod}
+class HybridMethod(Method):
+    """The lights summed exactly + SH of the ambient at every pixel's normal (no shadows)."""
+
+    name = "hybrid"
+
+    def __init__(self, order: int = DEFAULT_AMBIENT_ORDER, params: LightParams | None = None):
+        self.order = order
+        self._hybrid = PerEnvironment(lambda env: hybrid_irradiance(env, ambient_order=order, params=params))
+
+    def shade(self, scene, tracer, hits):
+        return hits.albedo * np.maximum(self._hybrid.get(scene.environment).evaluate(hits.normal), 0.0) / np.pi
+
+    def describe(self):
+        return f"hybrid: area lights summed exactly + ambient SH order {self.order} (no shadows)"
+
+
+def _check_samples(what: str, n) -> None:
+    if not isinstance(n, (int, np.integer)) or not 1 <= n <= MAX_SAMPLES:
+        raise UsageError(f"{what} must be a whole number from 1 to {MAX_SAMPLES}, got {n!r}")
+
+
+class LightsMethod(Method):
+    """Area lights with soft shadows + SH ambient (Arbree, Walter & Bala 2005), optionally ambient occlusion."""
+
+    name = "lights"
+
+    def __init__(self, light_samples: int = 16, ao: bool = False, ao_samples: int = 16, seed: int = 0,
+                 order: int = DEFAULT_AMBIENT_ORDER, params: LightParams | None = None):
+        _check_samples("light samples", light_samples)
+        _check_samples("ambient-occlusion samples", ao_samples)
+        self.light_samples, self.ao, self.ao_samples, self.seed, self.order = light_samples, ao, ao_samples, seed, order
+        self._parts = PerEnvironment(lambda env: self._decompose(env, params))
+
+    def _decompose(self, env, params):
+        dec = decompose(env, params)
+        return dec, project(dec.ambient, self.order).to_irradiance(), _visibility_map(dec.ambient)
+
+    def decomposition(self, scene: Scene):
+        """The scene environment's decomposition (found once per environment)."""
+        return self._parts.get(scene.environment)[0]
+
+    def shade(self, scene, tracer, hits):
+        dec, ambient, brightness = self._parts.get(scene.environment)
+        # one stream for the lights, one for the ambient's rays: turning --ao on does not move the lights' samples
+        light_rng, ao_rng = (np.random.default_rng(s) for s in np.random.SeedSequence(self.seed).spawn(2))
+        origins = tracer.shadow_origins(hits)
+        irradiance = np.maximum(ambient.evaluate(hits.normal), 0.0)
+        if self.ao:
+            irradiance *= ambient_visibility(tracer, origins, hits.normal, brightness, self.ao_samples,
+                                             ao_rng)[:, None]
+        for light in dec.lights:
+            seen = visible_cosine_over_cap(tracer, origins, hits.normal, light.direction, light.radius,
+                                           self.light_samples, light_rng)
+            irradiance += seen[:, None] * light.radiance[None, :]
+        return hits.albedo * irradiance / np.pi
+
+    def describe(self):
+        ao = f", ambient occlusion ({self.ao_samples} rays)" if self.ao else ""
+        return (f"area lights ({self.light_samples} shadow rays each) + ambient SH order {self.order}{ao}, "
+                f"seed {self.seed}")
+
+
+class PointLightsMethod(Method):
+    """``count`` point lights from median cut or variance minimisation, one shadow ray each, no ambient."""
+
+    name = "mediancut"
+    _finders = {"mediancut": (median_cut, "median cut"), "varmin": (variance_minimisation, "variance minimisation")}
+
+    def __init__(self, count: int = 16):
+        check_count(count)
+        self.count = count
+        find = self._finders[self.name][0]
+        self._lights = PerEnvironment(lambda env: find(env, count))
+
+    def shade(self, scene, tracer, hits):
+        origins = tracer.shadow_origins(hits)
+        irradiance = np.zeros((len(hits), 3))
+        for light in self._lights.get(scene.environment):
+            cosine = hits.normal @ light.direction
+            lit = np.nonzero(cosine > 0)[0]
+            free = ~tracer.occluded(origins[lit], light.direction[None, :])
+            irradiance[lit[free]] += cosine[lit[free], None] * light.power[None, :]
+        return hits.albedo * irradiance / np.pi
+
+    def describe(self):
+        return f"{self._finders[self.name][1]}: {self.count} point lights, hard shadows, no ambient"
+
+
+class VarminMethod(PointLightsMethod):
+    name = "varmin"
+
+
+# ---- sampling ---------------------------------------------------------------------------------------------------
+def _frame(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors completing unit ``axis`` (..., 3) to an orthonormal frame (Duff et al. 2017, branchless)."""
+    x, y, z = axis[..., 0], axis[..., 1], axis[..., 2]
+    sign = np.where(z >= 0, 1.0, -1.0)
+    a = -1.0 / (sign + z)
+    b = x * y * a
+    t = np.stack([1 + sign * x * x * a, sign * b, -sign * x], axis=-1)
+    s = np.stack([b, sign + y * y * a, -y], axis=-1)
+    return t, s
+
+
+def _batches(points: int, per_point: int):
+    step = max(1, RAYS_PER_BATCH // per_point)
+    return (slice(i, min(i + step, points)) for i in range(0, points, step))
+
+
+def visible_cosine_over_cap(tracer: Tracer, origins: np.ndarray, normals: np.ndarray, direction: np.ndarray,
+                            radius: float, n: int, rng) -> np.ndarray:
+    """∫ over the cap (``direction``, angular ``radius``) of max(n·ω, 0) V(ω) dω at each point (sr). Times a uniform
+    radiance it is the light's irradiance.
+
+    Exact where nothing can block the cap (:meth:`Tracer.may_block`) and the whole cap is above the shading
+    horizon (n·d ≥ sin r): n·d · π sin² r. Zero where it is wholly below (n·d ≤ −sin r). Elsewhere ``n`` stratified
+    samples uniform in solid angle (:func:`lightprobe.render.sampling.cap_rays`), one shadow ray each."""
+    from .sampling import cap_rays, uniforms
+
+    axis = np.asarray(direction, dtype=np.float64)
+    normals, origins = np.ascontiguousarray(normals, np.float64), np.ascontiguousarray(origins, np.float64)
+    cos_to, bound = normals @ axis, float(np.sin(radius))
+    out = np.where(cos_to >= bound, cos_to * np.pi * bound * bound, 0.0)
+    sampled = np.nonzero((cos_to > -bound) & (tracer.may_block(origins, axis, radius) | (cos_to < bound)))[0]
+    t, s = _frame(axis)
+    solid = 2 * np.pi * (1 - np.cos(radius))
+    for part in _batches(sampled.size, n):
+        which = sampled[part]
+        m = which.size
+        ray_orig, ray_dir = np.empty((m * n, 3), np.float32), np.empty((m * n, 3), np.float32)
+        cosine = np.empty(m * n)
+        cap_rays(normals[which], origins[which], axis, t, s, float(np.cos(radius)), uniforms(rng, m, n), ray_orig,
+                 ray_dir, cosine)
+        # every sample is traced: picking out those above the horizon costs numpy more than Embree spends on them
+        seen = np.where(tracer.occluded(ray_orig, ray_dir), 0.0, np.maximum(cosine, 0.0))
+        out[which] = seen.reshape(m, n).sum(axis=1) * (solid / n)
+    return out
+
+
+# ---- the ambient's shadows --------------------------------------------------------------------------------------
+VISIBILITY_ROWS = 32  # the ambient's brightness map that weights occlusion rays (smooth is what is wanted)
+
+
+def _visibility_map(ambient) -> np.ndarray:
+    """The ambient's luminance on a small lat-long (energy-conserving resampling: a blurred copy), for weighting."""
+    from ..layouts import LATLONG
+
+    small = ambient.to(LATLONG, VISIBILITY_ROWS)
+    return np.ascontiguousarray(np.maximum(luminance(small.data.astype(np.float64)), 0.0))
+
+
+def ambient_visibility(tracer: Tracer, origins: np.ndarray, normals: np.ndarray, brightness: np.ndarray, n: int,
+                       rng) -> np.ndarray:
+    """The shadowed share of each point's ambient irradiance, to multiply its (unshadowed) SH irradiance by.
+
+    Which and why: ``n`` cosine-weighted rays per point (stratified, Malley's method), each weighted by the ambient's
+    brightness in its direction — Σ Y(ω) V(ω) / Σ Y(ω), a ratio estimator of ∫ L V cos dω / ∫ L cos dω. Plain
+    ambient occlusion (Σ V / n) would darken a point under a bunny as much for a black floor blocked as for a bright
+    sky; weighting by the ambient's own brightness (``brightness``: a 32-row blurred lat-long of its luminance, read
+    bilinearly) removes that bias where the ambient is directional, and it keeps SH's accuracy exactly where nothing
+    is blocked (the ratio is 1). A bent normal would need the same rays and still treat every direction alike.
+    Points whose rays all see black get 1."""
+    from .sampling import cosine_rays, uniforms
+
+    normals, origins = np.ascontiguousarray(normals, np.float64), np.ascontiguousarray(origins, np.float64)
+    tangent, bitangent = (np.ascontiguousarray(v) for v in _frame(normals))
+    out = np.ones(len(origins))
+    for part in _batches(len(origins), n):
+        m = part.stop - part.start
+        ray_orig, ray_dir, y = np.empty((m * n, 3), np.float32), np.empty((m * n, 3), np.float32), np.empty(m * n)
+        cosine_rays(normals[part], tangent[part], bitangent[part], origins[part], uniforms(rng, m, n), brightness,
+                    ray_orig, ray_dir, y)
+        blocked = tracer.occluded(ray_orig, ray_dir).reshape(m, n)
+        y = y.reshape(m, n)
+        total = y.sum(axis=1)
+        seen = np.where(blocked, 0.0, y).sum(axis=1)
+        out[part] = np.where(total > 0, seen / np.where(total > 0, total, 1.0), 1.0)
+    return out
+
+
+METHODS = {"sh": SHMethod, "brute": BruteMethod, "hybrid": HybridMethod, "lights": LightsMethod,
+           "mediancut": PointLightsMethod, "varmin": VarminMethod}
 
 
 def method(name: str, **options) -> Method:

@@ -14,6 +14,7 @@ import numpy as np
 
 from .scene import Scene
 
+OCCLUSION_CHUNK = 1 << 16  # shadow rays per Embree call and thread (fewer: the calls' overhead shows)
 SHADOW_EPSILON = 1e-4  # offset of shadow-ray origins along the normal, relative to the scene's size
 
 
@@ -54,6 +55,30 @@ class Tracer:
         self.face_normals = mesh.face_normals
         self._intersector = RayMeshIntersector(mesh, scale_to_box=False)
         self.extent = float(np.ptp(self.vertices, axis=0).max())
+        self._bounds = [_bound(m.vertices, self.extent) for m in scene.meshes]
+
+    def may_block(self, points: np.ndarray, axis: np.ndarray, half_angle: float) -> np.ndarray:
+        """False where no ray from the point within ``half_angle`` of unit ``axis`` can hit any mesh — a cheap,
+        conservative test per mesh on its bound (below), so shadow rays are cast only where a shadow may fall.
+
+        A flat mesh (a ground plane) cannot be hit by a ray leaving the side of its plane the point is on; any
+        other mesh not by a ray whose cone clears its bounding sphere."""
+        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        out = np.zeros(len(points), dtype=bool)
+        bound_sin = np.sin(min(half_angle, np.pi / 2))
+        for kind, a, b in self._bounds:
+            if kind == "plane":  # a: unit normal, b: offset (n·x = b on the plane)
+                side = points @ a - b
+                toward = float(axis @ a)
+                out |= ~(((side >= 0) & (toward >= bound_sin)) | ((side <= 0) & (toward <= -bound_sin)))
+            else:  # a: centre, b: radius
+                to = a - points
+                dist = np.linalg.norm(to, axis=1)
+                inside = dist <= b
+                cos_to = (to @ axis) / np.maximum(dist, 1e-300)
+                reach = half_angle + np.arcsin(np.clip(b / np.maximum(dist, 1e-300), 0.0, 1.0))
+                out |= inside | (np.arccos(np.clip(cos_to, -1.0, 1.0)) <= reach)
+        return out
 
     def first_hits(self, origins: np.ndarray, directions: np.ndarray) -> Hits:
         """Closest hit of each ray (rays that miss are absent)."""
@@ -77,10 +102,30 @@ class Tracer:
                     tri - self.face_offsets[mesh_id], bary, facing)
 
     def occluded(self, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
-        """True where a ray (towards a light at infinity) hits any geometry."""
-        origins = np.ascontiguousarray(origins, dtype=np.float64).reshape(-1, 3)
-        directions = np.ascontiguousarray(directions, dtype=np.float64).reshape(-1, 3)
-        return self._intersector.intersects_any(origins, directions)
+        """True where a ray (towards a light at infinity) hits any geometry.
+
+        Embree's occlusion query (any hit ends the ray: cheaper than trimesh's ``intersects_any``, which finds the
+        closest), float32 as Embree stores the scene, in chunks shared by the threads of
+        :func:`lightprobe.limits.threads` — embreex releases the GIL while Embree traces."""
+        from concurrent.futures import ThreadPoolExecutor
+
+        from ..limits import threads
+
+        origins, directions = (np.asarray(a, dtype=np.float32).reshape(-1, 3) for a in (origins, directions))
+        origins, directions = (np.ascontiguousarray(a) for a in np.broadcast_arrays(origins, directions))
+        out = np.empty(len(origins), dtype=bool)
+        if not len(out):
+            return out
+        step = max(OCCLUSION_CHUNK, -(-len(out) // threads()))
+        scene = self._intersector._scene  # trimesh's embreex scene: its ``run`` has the OCCLUDED query
+
+        def trace(start):
+            part = slice(start, start + step)
+            out[part] = scene.run(origins[part], directions[part], query="OCCLUDED") == 0  # 0: blocked, −1: free
+
+        with ThreadPoolExecutor(min(threads(), -(-len(out) // step))) as pool:
+            list(pool.map(trace, range(0, len(out), step)))
+        return out
 
     def shadow_origins(self, hits: Hits) -> np.ndarray:
         """Hit points nudged off the surface along the (viewer-facing) geometric normal."""
@@ -100,6 +145,20 @@ class Tracer:
             else:
                 out[sel] = mat.albedo
         return out
+
+
+def _bound(vertices: np.ndarray, extent: float) -> tuple[str, np.ndarray, float]:
+    """A mesh's bound for :meth:`Tracer.may_block`: ("plane", unit normal, offset) when every vertex lies within
+    1e-7 of the scene's size of one plane, else ("sphere", centre, radius) around its box's centre."""
+    centre = (vertices.min(axis=0) + vertices.max(axis=0)) / 2
+    radius = float(np.linalg.norm(vertices - centre, axis=1).max()) * (1 + 1e-9) + 1e-9 * extent
+    if len(vertices) >= 3:
+        _, sing, vt = np.linalg.svd(vertices - vertices.mean(axis=0), full_matrices=False)
+        normal = vt[-1]
+        offset = float(vertices.mean(axis=0) @ normal)
+        if np.abs(vertices @ normal - offset).max() <= 1e-7 * max(extent, 1e-300):
+            return "plane", normal, offset
+    return "sphere", centre, radius
 
 
 def _texture_lookup(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
