@@ -1,4 +1,4 @@
-"""lightprobe's lights JSON file, written by ``lightprobe lights`` (and, later, read by the light exports).
+"""lightprobe's lights JSON file, written by ``lightprobe lights`` and read by the light exports (``export --lights``).
 
 Schema ``{"format": "lightprobe.lights", "version": 1, ...}``:
 
@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 
 import numpy as np
 
@@ -77,3 +78,76 @@ def point_lights_document(lights: list[PointLight], total: np.ndarray, method: s
             "method": method, "lights": out, "ambient": None, "total_power": [float(v) for v in total],
             "shares": {"lights": share, "ambient": 1.0 - share}, "parameters": dict(parameters),
             "timings": dict(timings), "source": source}
+
+
+# ---- reading --------------------------------------------------------------------------------------------------------
+MAX_BYTES = 16 << 20
+MAX_LIGHTS = 10_000
+
+
+@dataclasses.dataclass(frozen=True)
+class LightSet:
+    """What the exports need of a lights file: each light's ``direction`` (world, unit), angular ``radius``
+    (radians; 0 for a point light) and RGB ``power`` (∫L dω), and the ambient's radiance SH (world frame; None when
+    the lights carry the whole map)."""
+
+    directions: np.ndarray  # (n, 3)
+    radii: np.ndarray  # (n,)
+    powers: np.ndarray  # (n, 3)
+    ambient: SHCoeffs | None
+    method: str
+
+
+def read_lights_json(text: str | bytes, what: str = "lights file") -> LightSet:
+    """The lights of a ``lightprobe.lights`` v1 document; every field the exports use is checked (one clear
+    :class:`~lightprobe.errors.InputError` otherwise). Directions are normalised; a radius must be within
+    0°..90°, powers finite and non-negative."""
+    from .shfile import read_sh_json, versioned_document
+
+    doc, fail = versioned_document(text, what, FORMAT, VERSION, MAX_BYTES)
+    if doc.get("frame") != WORLD.name:
+        fail("frame must be world")
+    method = doc.get("method")
+    if not isinstance(method, str) or len(method) > 64:
+        fail("method must be a short text")
+    lights = doc.get("lights")
+    if not isinstance(lights, list) or len(lights) > MAX_LIGHTS:
+        fail(f"lights must be a list of at most {MAX_LIGHTS}")
+    directions, radii, powers = [], [], []
+    for i, light in enumerate(lights):
+        if not isinstance(light, dict):
+            fail(f"light {i} is not an object")
+        d, r, p = light.get("direction"), light.get("angular_radius_deg"), light.get("power")
+        if not _numbers(d, 3) or not np.all(np.isfinite(d)) or np.linalg.norm(d) < 1e-6:
+            fail(f"light {i}: direction must be three finite numbers, not all zero")
+        if not _number(r) or not 0 <= r <= 90:
+            fail(f"light {i}: angular_radius_deg must be a number within 0..90")
+        if not _numbers(p, 3) or not np.all(np.isfinite(p)) or min(p) < 0:
+            fail(f"light {i}: power must be three finite numbers ≥ 0")
+        directions.append(np.asarray(d, dtype=np.float64) / np.linalg.norm(d))
+        radii.append(np.radians(float(r)))
+        powers.append(np.asarray(p, dtype=np.float64))
+    ambient = doc.get("ambient")
+    sh = None
+    if ambient is not None:
+        if not isinstance(ambient, dict) or not isinstance(ambient.get("sh"), dict):
+            fail("ambient must be null or an object with an sh document")
+        sh = read_sh_json(json.dumps(ambient["sh"]), f"{what}'s ambient")
+        if sh.quantity != "radiance":
+            fail("the ambient's SH must be radiance")
+    return LightSet(np.array(directions).reshape(-1, 3), np.array(radii), np.array(powers).reshape(-1, 3), sh,
+                    method)
+
+
+def _number(v) -> bool:
+    """A finite JSON number (a bool is not one; an integer too big for a float is not finite)."""
+    if not isinstance(v, (int, float)) or isinstance(v, bool):
+        return False
+    try:
+        return math.isfinite(float(v))
+    except OverflowError:
+        return False
+
+
+def _numbers(v, n: int) -> bool:
+    return isinstance(v, list) and len(v) == n and all(_number(x) for x in v)

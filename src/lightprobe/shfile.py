@@ -42,23 +42,30 @@ def sh_json(sh: SHCoeffs, frame: Frame = WORLD, source: str | None = None) -> st
     return json.dumps(sh_document(sh, frame, source), indent=1, allow_nan=False) + "\n"
 
 
-def read_sh_json(text: str | bytes, what: str = "SH file") -> SHCoeffs:
-    """Coefficients from the schema's JSON text; every field is checked."""
-    if len(text) > MAX_BYTES:
-        raise InputError(f"cannot read {what}: over {MAX_BYTES} bytes")
+def versioned_document(text: str | bytes, what: str, fmt: str, version: int, max_bytes: int):
+    """The JSON object of a ``{"format": fmt, "version": version, …}`` document and a ``fail(reason)`` that raises
+    the one-line :class:`~lightprobe.errors.InputError` "cannot read <what>: <reason>" (shared by lightprobe's
+    readers)."""
+    def fail(reason: str):
+        raise InputError(f"cannot read {what}: {reason}")
+
+    if len(text) > max_bytes:
+        fail(f"over {max_bytes} bytes")
     try:
         doc = json.loads(text)
     except (ValueError, UnicodeDecodeError, RecursionError) as e:
         raise InputError(f"cannot read {what}: not JSON ({str(e).splitlines()[0][:120] if str(e) else 'invalid'})"
                          ) from None
+    if not isinstance(doc, dict) or doc.get("format") != fmt:
+        fail(f"not a {fmt} document")
+    if doc.get("version") != version:
+        fail(f"version {str(doc.get('version'))[:20]} is not {version}")
+    return doc, fail
 
-    def fail(reason: str):
-        raise InputError(f"cannot read {what}: {reason}")
 
-    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-        fail(f"not a {FORMAT} document")
-    if doc.get("version") != VERSION:
-        fail(f"version {str(doc.get('version'))[:20]} is not {VERSION}")
+def read_sh_json(text: str | bytes, what: str = "SH file") -> SHCoeffs:
+    """Coefficients from the schema's JSON text; every field is checked."""
+    doc, fail = versioned_document(text, what, FORMAT, VERSION, MAX_BYTES)
     quantity, frame, window, l_max = doc.get("quantity"), doc.get("frame"), doc.get("window", "none"), doc.get("l_max")
     if quantity not in QUANTITIES:
         fail("quantity must be radiance or irradiance")

@@ -20,6 +20,8 @@ def register(sub) -> None:
     add_probe(p)
     p.add_argument("--sh", type=Path, help="start from coefficients in lightprobe's SH JSON (from 'sh --json' or "
                                            "'design --json') instead of projecting a map")
+    p.add_argument("--lights", type=Path, help="export the area lights of a 'lightprobe lights' JSON (with its "
+                                               "ambient SH) as the engine's directional lights, instead of SH alone")
     p.add_argument("--to", "-t", required=True, choices=TARGETS + CONTAINERS)
     p.add_argument("--output", "-o", type=Path, required=True,
                    help="gltf from a map: .glb (binary) or .gltf (images embedded); babylon-env: .env")
@@ -36,7 +38,10 @@ def register(sub) -> None:
 def run(args) -> None:
     from ..files import check_output
 
-    inputs = [p for p in (args.file, args.sh) if p is not None]
+    inputs = [p for p in (args.file, args.sh, args.lights) if p is not None]
+    if args.lights is not None:
+        export_lights_file(args, inputs)
+        return
     container = args.to in CONTAINERS or (args.to == "gltf" and args.sh is None)
     check_output(args.output, inputs, text=not container)
     if args.sh is not None:
@@ -57,6 +62,40 @@ def run(args) -> None:
     text = export(sh, args.to, args.frame, args.gltf_scaling, csharp=args.output.suffix.lower() == ".cs")
     write_text(args.output, text, inputs)
     print(f"wrote {args.output} ({args.to})")
+
+
+def export_lights_file(args, inputs) -> None:
+    from ..files import check_output
+    from ..io import check_regular_file
+    from ..lightexport import export_lights
+    from ..lightsfile import MAX_BYTES, read_lights_json
+    from ..names import LIGHT_EXPORT_TARGETS
+
+    if args.file is not None or args.sh is not None:
+        refuse("--lights carries its own ambient: give no map and no --sh")
+    if args.to not in LIGHT_EXPORT_TARGETS:
+        refuse(f"--lights exports to {', '.join(LIGHT_EXPORT_TARGETS)}, not {args.to}")
+    if args.frame is not None or args.window != "none":
+        refuse("--lights exports in each engine's own frame, without a window")
+    gltf = args.to == "gltf"
+    if gltf and args.output.suffix.lower() not in (".glb", ".gltf"):
+        refuse(f"--to gltf writes a .glb or .gltf file, not {args.output.name}")
+    check_output(args.output, inputs, text=not gltf)
+    check_regular_file(args.lights, "lights file")
+    lights = read_lights_json(args.lights.read_bytes()[: MAX_BYTES + 1], str(args.lights))
+    if gltf:
+        from ..containers import glb, gltf_embedded
+        from ..files import write_bytes
+        from ..lightexport import gltf_lights
+
+        document, images = gltf_lights(lights)
+        if args.output.suffix.lower() == ".glb":
+            write_bytes(args.output, glb(document, images), inputs)
+        else:
+            write_text(args.output, gltf_embedded(document, images), inputs)
+    else:
+        write_text(args.output, export_lights(lights, args.to), inputs)
+    print(f"wrote {args.output} ({len(lights.radii)} lights + ambient for {args.to})")
 
 
 def read_sh(path: Path):

@@ -1,0 +1,242 @@
+"""Area lights + ambient SH for engines: each light as the engine's directional light, in its own units and frame.
+
+Input: a :class:`~lightprobe.lightsfile.LightSet` (world frame; each light's RGB ``power`` = ∫L dω over its cap of
+angular radius r; the ambient as radiance SH). The conversions, each named once:
+
+* :func:`perpendicular_irradiance` — a directional light's "intensity × colour" in every engine here is the
+  irradiance E⊥ it gives a surface facing it; a diffuse surface then reflects albedo · E⊥ · max(n·l, 0) / π (three.js,
+  Babylon, Filament and glTF's KHR_lights_punctual, whose lux is that irradiance). A uniform cap of radiance
+  L = P/Ω gives E(n) = L π sin²r (n·d) wherever the whole cap is above the horizon, so E⊥ = P (1 + cos r)/2 makes the
+  directional light exact there (only the normals whose horizon cuts the cap differ). Unity's built-in BRDF leaves
+  out the 1/π, so its intensity is E⊥/π (as its ambient SH is E/π: :func:`lightprobe.export.unity_coefficients`).
+* Directions: the engines want the direction the light *travels* (−d), stated in the same frame as each engine's
+  SH export (:data:`lightprobe.export.DEFAULT_FRAMES`), so lights and ambient stay where the engine's background
+  shows them.
+* Colour and intensity: intensity = the largest channel of the engine's irradiance, colour = the channels over it
+  (linear RGB in [0, 1]).
+* Engines that take fewer lights (Filament: one directional light, the SUN) get the others folded into the ambient
+  SH as uniform caps (:func:`cap_sh`, Funk–Hecke: exact in every band).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+
+from .errors import UsageError
+from .export import (babylon_polynomial, export_threejs, filament_coefficients, gltf_coefficients,
+                     unity_coefficients)
+from .frames import BABYLON, FILAMENT, THREEJS, UNITY, WORLD, Frame
+from .lightsfile import LightSet
+from .names import LIGHT_EXPORT_TARGETS
+from .sh import SHCoeffs, basis, n_coeffs
+
+# glTF nodes as Babylon's glTF loader places them: it turns the file's right-handed space into its left-handed one
+# (its root node: z mirrored, then a half turn about +Y, i.e. (x, y, z) → (−x, y, z)); this frame makes a light in
+# the file land where Babylon's frame (x, y, −z of world) has it, beside the EXT_lights_image_based ambient, which
+# Babylon reads without any change of frame. Checked in Babylon itself by tests/test_engines.py.
+GLTF_NODES = Frame("gltf-nodes", np.diag([-1.0, 1.0, -1.0]),
+                   "glTF node space as Babylon's loader shows it beside EXT_lights_image_based: (−x, y, −z) of world")
+FILAMENT_SUN_RADIUS_DEG = (0.25, 20.0)  # Filament clamps sunAngularRadius to this range
+BABYLON_DEFAULT_LIGHTS = 4  # a Babylon material's maxSimultaneousLights unless raised
+
+
+def perpendicular_irradiance(radius: float, power: np.ndarray) -> np.ndarray:
+    """E⊥ (RGB irradiance, radiance × sr) of a uniform cap of angular ``radius`` and RGB ``power`` on a surface
+    facing its centre: P (1 + cos r)/2 (a point light, r = 0: P)."""
+    return np.asarray(power, dtype=np.float64) * (1 + math.cos(radius)) / 2
+
+
+def cap_sh(direction: np.ndarray, radius: float, power: np.ndarray, l_max: int) -> SHCoeffs:
+    """Radiance SH (world frame, the paper's basis) of a uniform cap: radiance P/Ω over the directions within
+    ``radius`` of ``direction``. Funk–Hecke: L_lm = L · 2π ∫_{cos r}^1 P_l(t) dt · Y_lm(d), with
+    ∫_x^1 P_0 = 1 − x and ∫_x^1 P_l = (P_{l−1}(x) − P_{l+1}(x)) / (2l + 1)."""
+    from numpy.polynomial import legendre
+
+    x = math.cos(radius)
+    solid = 2 * math.pi * (1 - x)
+    if solid <= 1e-12:  # a point light: 2π ∫ P_l / Ω → 1 (P_l(1) = 1), L_lm = P Y_lm(d)
+        zonal = np.ones(l_max + 1)
+    else:
+        p = [legendre.legval(x, [0] * l + [1]) for l in range(l_max + 2)]
+        zonal = np.array([1 - x] + [(p[l - 1] - p[l + 1]) / (2 * l + 1) for l in range(1, l_max + 1)])
+        zonal *= 2 * math.pi / solid
+    scale = np.asarray(power, dtype=np.float64)
+    y = basis(l_max, np.asarray(direction, dtype=np.float64)[None, :])[0]  # (n_coeffs,)
+    bands = np.repeat(np.arange(l_max + 1), 2 * np.arange(l_max + 1) + 1)
+    return SHCoeffs((zonal[bands] * y)[:, None] * scale[None, :], WORLD, "radiance")
+
+
+def ambient_sh(lights: LightSet, folded: list[int], l_max: int = 2) -> SHCoeffs:
+    """The ambient's radiance SH (bands ≤ ``l_max``; zero if the file has none) plus the lights ``folded`` into it."""
+    total = np.zeros((n_coeffs(l_max), 3))
+    if lights.ambient is not None:
+        total += lights.ambient.truncated(min(l_max, lights.ambient.l_max)).to_frame(WORLD).coeffs[:n_coeffs(l_max)]
+    for i in folded:
+        total += cap_sh(lights.directions[i], lights.radii[i], lights.powers[i], l_max).coeffs
+    return SHCoeffs(total, WORLD, "radiance")
+
+
+def _colour_intensity(e: np.ndarray) -> tuple[list[float], float]:
+    peak = float(e.max())
+    return ([float(v) for v in (e / peak if peak > 0 else np.ones(3))], peak)
+
+
+def engine_lights(lights: LightSet, frame: Frame, over_pi: bool = False) -> list[dict]:
+    """Each light as ``travel`` (unit, the direction the light travels, in ``frame``), ``toward`` (its opposite:
+    where the light is), ``colour`` (linear RGB, max 1) and ``intensity`` (E⊥, or E⊥/π with ``over_pi``), brightest
+    first."""
+    out = []
+    for d, r, p in zip(lights.directions, lights.radii, lights.powers):
+        e = perpendicular_irradiance(r, p) / (math.pi if over_pi else 1.0)
+        colour, intensity = _colour_intensity(e)
+        toward = frame.from_world(d)
+        out.append({"travel": [float(-v) for v in toward], "toward": [float(v) for v in toward], "colour": colour,
+                    "intensity": intensity, "angular_radius_deg": math.degrees(float(r))})
+    return sorted(out, key=lambda light: -light["intensity"] * max(light["colour"]))
+
+
+def _brightest(lights: LightSet) -> list[int]:
+    return sorted(range(len(lights.radii)), key=lambda i: -float(perpendicular_irradiance(lights.radii[i],
+                                                                                          lights.powers[i]).max()))
+
+
+# ---- the engines --------------------------------------------------------------------------------------------------
+def export_threejs_lights(lights: LightSet, frame: Frame = THREEJS) -> str:
+    """A three.js ObjectLoader JSON ``Group``: the ambient as a ``LightProbe`` (as :func:`lightprobe.export.
+    export_threejs`) and one ``DirectionalLight`` per light, placed 10 units toward the light with its target at the
+    origin (three.js lights along position − target). ``color`` is the sRGB hex three.js's ``Color`` decodes to the
+    linear colour (8 bits a channel: ≤ 0.4 % off); ``userData`` holds the exact linear colour. Intensity: E⊥
+    (three.js's lux since r155: its Lambert term divides by π)."""
+    probe = json.loads(export_threejs(ambient_sh(lights, []), frame))["object"]
+    children = [probe]
+    for k, light in enumerate(engine_lights(lights, frame)):
+        children.append({"uuid": f"5b0c0f0e-1a1b-4c2d-8e3f-{k + 2:012d}", "type": "DirectionalLight",
+                         "name": f"lightprobe light {k + 1}", "layers": 1,
+                         "matrix": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, *[10 * v for v in light["toward"]], 1],
+                         "up": [0, 1, 0], "color": _srgb_hex(light["colour"]), "intensity": light["intensity"],
+                         "userData": {"linearColor": light["colour"],
+                                      "angularRadiusDeg": light["angular_radius_deg"]}})
+    return json.dumps({"metadata": {"version": 4.6, "type": "Object", "generator": "lightprobe"},
+                       "object": {"uuid": "5b0c0f0e-1a1b-4c2d-8e3f-000000000000", "type": "Group",
+                                  "name": "lightprobe lights + ambient (three.js frame)", "layers": 1,
+                                  "matrix": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1], "up": [0, 1, 0],
+                                  "children": children}}, indent=1)
+
+
+def _srgb_hex(colour: list[float]) -> int:
+    c = np.clip(np.asarray(colour), 0, 1)
+    encoded = np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1 / 2.4) - 0.055)
+    r, g, b = (int(round(255 * v)) for v in encoded)
+    return (r << 16) | (g << 8) | b
+
+
+def export_filament_lights(lights: LightSet, frame: Frame = FILAMENT) -> str:
+    """Filament takes one directional light: the brightest as ``LightManager::Type::SUN`` (``direction`` = travel,
+    ``intensity`` E⊥ in lux with the IndirectLight at intensity 1, linear ``color``, ``sunAngularRadius`` the cap's
+    radius in degrees within Filament's 0.25°–20°); every other light is folded into the ambient, whose
+    ``irradiance`` table (IndirectLight::Builder::irradiance(3, sh)) is :func:`lightprobe.export.
+    filament_coefficients` of it."""
+    order = _brightest(lights)
+    sun = engine_lights(LightSet(lights.directions[order[:1]], lights.radii[order[:1]], lights.powers[order[:1]],
+                                 None, lights.method), frame) if order else []
+    sh = filament_coefficients(ambient_sh(lights, order[1:]), frame)
+    doc = {"format": "lightprobe.filament-lights", "frame": frame.name, "indirectLightIntensity": 1.0,
+           "irradiance": [[float(v) for v in row] for row in sh], "folded_into_irradiance": len(order[1:])}
+    if sun:
+        lo, hi = FILAMENT_SUN_RADIUS_DEG
+        doc["sun"] = {"type": "SUN", "direction": sun[0]["travel"], "color": sun[0]["colour"],
+                      "intensity": sun[0]["intensity"],
+                      "sunAngularRadius": min(hi, max(lo, sun[0]["angular_radius_deg"]))}
+    return json.dumps(doc, indent=1)
+
+
+def export_babylon_lights(lights: LightSet, frame: Frame = BABYLON) -> str:
+    """Babylon: ``new DirectionalLight(name, Vector3.FromArray(direction), scene)`` per light (``direction`` =
+    travel in Babylon's frame), ``intensity`` E⊥ (its PBR Lambert term divides by π), ``diffuse`` the linear colour;
+    the ambient as the ``SphericalPolynomial`` of :func:`lightprobe.export.export_babylon`. A Babylon material
+    takes 4 lights unless its ``maxSimultaneousLights`` is raised: ``maxSimultaneousLights`` says how many."""
+    poly = babylon_polynomial(ambient_sh(lights, []), frame)
+    out = [{"name": f"lightprobe light {k + 1}", "direction": light["travel"], "intensity": light["intensity"],
+            "diffuse": light["colour"], "angularRadiusDeg": light["angular_radius_deg"]}
+           for k, light in enumerate(engine_lights(lights, frame))]
+    return json.dumps({"format": "lightprobe.babylon-lights", "frame": frame.name, "directionalLights": out,
+                       "maxSimultaneousLights": max(BABYLON_DEFAULT_LIGHTS, len(out)),
+                       "polynomial": [[float(v) for v in poly[k]] for k in ("x", "y", "z", "xx", "yy", "zz", "yz",
+                                                                             "zx", "xy")]}, indent=1)
+
+
+def export_unity_lights(lights: LightSet, frame: Frame = UNITY) -> str:
+    """A C# method making one ``Light`` (``LightType.Directional``) per light — ``transform.rotation =
+    Quaternion.LookRotation(travel)`` (a Unity light shines along its +Z), linear ``color``, ``intensity`` E⊥/π
+    (Unity's BRDF leaves out the 1/π) — and setting ``RenderSettings.ambientProbe`` to the ambient
+    (:func:`lightprobe.export.unity_coefficients`). Needs a linear-colour-space project."""
+    sh = unity_coefficients(ambient_sh(lights, []), frame)
+    lines = [f"        sh[{ch}, {i}] = {sh[i, ch]:.9g}f;" for ch in range(3) for i in range(9)]
+    for k, light in enumerate(engine_lights(lights, frame, over_pi=True)):
+        t, c = light["travel"], light["colour"]
+        lines += [f"        var light{k} = new GameObject(\"lightprobe light {k + 1}\").AddComponent<Light>();",
+                  f"        light{k}.type = LightType.Directional;",
+                  f"        light{k}.transform.rotation = Quaternion.LookRotation(new Vector3({t[0]:.9g}f, "
+                  f"{t[1]:.9g}f, {t[2]:.9g}f));",
+                  f"        light{k}.color = new Color({c[0]:.9g}f, {c[1]:.9g}f, {c[2]:.9g}f);",
+                  f"        light{k}.intensity = {light['intensity']:.9g}f;"]
+    return ("// lightprobe export: area lights as directional lights + ambient SH for Unity (left-handed, +Y up,\n"
+            "// +Z forward; linear colour space). Intensities are E_perp / pi, as Unity's BRDF leaves out 1/pi.\n"
+            "using UnityEngine;\nusing UnityEngine.Rendering;\n\npublic static class LightprobeLights\n{\n"
+            "    public static void Apply()\n    {\n        var sh = new SphericalHarmonicsL2();\n"
+            + "\n".join(lines) + "\n        RenderSettings.ambientMode = AmbientMode.Custom;\n"
+            "        RenderSettings.ambientProbe = sh;\n    }\n}\n")
+
+
+def gltf_lights(lights: LightSet, specular_size: int = 32) -> tuple[dict, list[bytes]]:
+    """A glTF 2.0 document and its images: ``KHR_lights_punctual`` directional lights (``intensity`` E⊥ in lux,
+    linear ``color``), each on a node whose ``rotation`` turns the light's −Z onto its travel direction in
+    :data:`GLTF_NODES`, and the ambient as the scene's ``EXT_lights_image_based`` light
+    (:func:`lightprobe.containers.gltf_ibl`): ``irradianceCoefficients`` of its SH, and — the file has no map — its
+    specular cube prefiltered from the ambient radiance the SH describes (clamped at 0; smooth, as an ambient is)."""
+    from .containers import gltf_ibl
+    from .envmap import EnvMap
+    from .layouts import LATLONG
+
+    grid = LATLONG.grid_shape(32)
+    if lights.ambient is not None:
+        radiance = np.maximum(lights.ambient.to_frame(WORLD).evaluate(LATLONG.directions(grid)), 0.0)
+    else:
+        radiance = np.zeros(grid + (3,))
+    document, images = gltf_ibl(EnvMap(radiance.astype(np.float32), LATLONG), ambient_sh(lights, []), specular_size)
+    found = engine_lights(lights, GLTF_NODES)
+    document["extensionsUsed"].append("KHR_lights_punctual")
+    document["extensions"]["KHR_lights_punctual"] = {"lights": [
+        {"type": "directional", "name": f"lightprobe light {k + 1}", "color": light["colour"],
+         "intensity": light["intensity"]} for k, light in enumerate(found)]}
+    document["nodes"] = [{"name": f"lightprobe light {k + 1}", "rotation": _quaternion_from_minus_z(light["travel"]),
+                          "extensions": {"KHR_lights_punctual": {"light": k}}} for k, light in enumerate(found)]
+    document["scenes"][0]["nodes"] = list(range(len(found)))
+    return document, images
+
+
+def _quaternion_from_minus_z(travel) -> list[float]:
+    """The unit quaternion [x, y, z, w] turning −Z onto unit ``travel`` (the shortest turn; a half turn about +Y
+    when travel is +Z)."""
+    a, b = np.array([0.0, 0.0, -1.0]), np.asarray(travel, dtype=np.float64)
+    c = float(a @ b)
+    if c < -1 + 1e-12:
+        return [0.0, 1.0, 0.0, 0.0]
+    axis = np.cross(a, b)
+    q = np.array([*axis, 1.0 + c])
+    q /= np.linalg.norm(q)
+    return [float(v) for v in q]
+
+
+def export_lights(lights: LightSet, target: str) -> str:
+    """The lights file for ``target`` (:data:`lightprobe.names.LIGHT_EXPORT_TARGETS`; glTF: :func:`gltf_lights`,
+    written with :func:`lightprobe.containers.glb` or ``gltf_embedded``)."""
+    writers = {"threejs": export_threejs_lights, "filament": export_filament_lights,
+               "babylon": export_babylon_lights, "unity": export_unity_lights}
+    if target not in writers:
+        raise UsageError(f"lights export to {target!r} is not known as text; choose {', '.join(writers)} (gltf: "
+                         "gltf_lights)")
+    return writers[target](lights)
