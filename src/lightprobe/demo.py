@@ -562,8 +562,8 @@ def section_render(rep: Report) -> str:
             f"irradiance plus the {found} area light(s) found in the turned probe, each sampled over its disc with "
             "16 stratified shadow rays (soft penumbrae). Its ambient is still unshadowed — the paper's own "
             "weakness — so <em>lights --ao</em> weights the ambient by brightness-weighted occlusion rays. "
-            f"<em>mediancut</em> is what users do today: {count} point lights carrying the whole map, hard "
-            "shadows.</p>"
+            f"<em>mediancut</em> is what users do today: {count} point light{'s' if count > 1 else ''} carrying "
+            "the whole map, hard shadows (as many as the lights found, rounded up to a power of two).</p>"
             '<div class="grid">' + "".join(figures) + "</div>" + '<div class="grid">' + "".join(heat) + "</div>"
             + table(["method", "what", "relative MSE", "MARE", "HDR-FLIP", "time"], rows))
 

@@ -197,7 +197,8 @@ class PointLightsMethod(Method):
         return hits.albedo * irradiance / np.pi
 
     def describe(self):
-        return f"{self._finders[self.name][1]}: {self.count} point lights, hard shadows, no ambient"
+        plural = "s" if self.count > 1 else ""
+        return f"{self._finders[self.name][1]}: {self.count} point light{plural}, hard shadows, no ambient"
 
 
 class VarminMethod(PointLightsMethod):
