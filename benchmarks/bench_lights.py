@@ -16,6 +16,7 @@ import argparse
 import math
 import sys
 import time
+from pathlib import Path
 
 from common import SHARED, best_of, require  # sets the environment first
 
@@ -84,18 +85,28 @@ def quality(size: int, spp: int) -> None:
     print("  " + ", ".join(f"{k}: {v}/{cases}" for k, v in wins.items()))
 
 
-def table1() -> None:
-    print("\n## Table 1: lights found (paper's defaults)")
-    print(f"{'probe':10s} {'found':>6s} {'paper':>6s} {'in lights':>10s} {'seconds':>8s}")
+def table1(previews: Path | None) -> None:
+    from lightprobe.io import write_image
+    from lightprobe.lights import LightParams, preview
+    from lightprobe.tonemap import luminance
+
+    print("\n## Table 1: lights found (paper's defaults), and with the stopping rule at 1 %")
+    print(f"{'probe':10s} {'found':>6s} {'paper':>6s} {'in lights':>10s} {'next light':>11s} {'stop 1 %':>9s} "
+          f"{'seconds':>8s}")
     for probe, (path, paper) in TABLE1.items():
         env = read_envmap(SHARED / path)
         t0 = time.perf_counter()
         dec = decompose(env)
         seconds = time.perf_counter() - t0
-        from lightprobe.tonemap import luminance
-
         share = float(luminance(dec.light_power) / luminance(dec.total))
-        print(f"{probe:10s} {len(dec.lights):6d} {paper:6d} {100 * share:9.0f}% {seconds:8.2f}")
+        rejected = f"{100 * dec.rejected_share:.2f} %" if dec.rejected_share is not None else "—"
+        looser = len(decompose(env, LightParams(stop_fraction=0.01)).lights)
+        print(f"{probe:10s} {len(dec.lights):6d} {paper:6d} {100 * share:9.0f}% {rejected:>11s} {looser:9d} "
+              f"{seconds:8.2f}")
+        if previews is not None:
+            previews.mkdir(parents=True, exist_ok=True)
+            write_image(previews / f"table1_{probe}.png", preview(env, dec.lights), encoded=True)
+    print("  (next light: the first light the 2 % rule turned away, as a share of the power of those kept before it)")
 
 
 def hybrid() -> None:
@@ -143,12 +154,13 @@ def main() -> int:
     parser.add_argument("--part", choices=("quality", "table1", "hybrid", "speed", "all"), default="all")
     parser.add_argument("--size", type=int, default=128)
     parser.add_argument("--reference-spp", type=int, default=1024)
+    parser.add_argument("--previews", type=Path, help="write Table 1's preview pictures (PNG) into this folder")
     args = parser.parse_args()
     paths = [SHARED / p for p in (*PROBES.values(), *MESHES.values(), *HYBRID_PROBES.values())]
     if not require(*paths):
         return 2
     if args.part in ("table1", "all"):
-        table1()
+        table1(args.previews)
     if args.part in ("speed", "all"):
         speed()
     if args.part in ("hybrid", "all"):

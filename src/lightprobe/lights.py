@@ -105,6 +105,9 @@ class Decomposition:
     params: LightParams
     total: np.ndarray  # ∫ original dω per channel
     timings: dict[str, float] = field(default_factory=dict)
+    # the luminance power of the first light the stopping rule turned away, over that of the lights kept before it
+    # (None when the search ended for another reason): how close the rule came to keeping one more
+    rejected_share: float | None = None
 
     @property
     def light_power(self) -> np.ndarray:
@@ -137,7 +140,7 @@ def decompose(env: EnvMap, params: LightParams | None = None) -> Decomposition:
     clock["filter"] = time.perf_counter()
 
     lights: list[AreaLight] = []
-    found_luminance = 0.0
+    found_luminance, rejected = 0.0, None
     reach = float(outer.max() + inner.max())
     while len(lights) < params.max_lights and responses.size:
         best = int(np.argmax(responses))
@@ -149,6 +152,7 @@ def decompose(env: EnvMap, params: LightParams | None = None) -> Decomposition:
         power = (data[taken].astype(np.float64) * omega[taken, None]).sum(axis=0)
         y = float(luminance(power))
         if lights and y < params.stop_fraction * found_luminance:
+            rejected = y / found_luminance
             break  # this light is not kept
         data[taken] = 0.0
         solid = 2 * math.pi * (1 - math.cos(r))
@@ -165,7 +169,7 @@ def decompose(env: EnvMap, params: LightParams | None = None) -> Decomposition:
     clock["extract"] = time.perf_counter()
     ambient = EnvMap(owned(data), env.layout)
     timings = {"filter": clock["filter"] - clock["start"], "extract": clock["extract"] - clock["filter"]}
-    return Decomposition(lights, ambient, params, env.integral(), timings)
+    return Decomposition(lights, ambient, params, env.integral(), timings, rejected)
 
 
 # ---- the working grid -----------------------------------------------------------------------------------------------

@@ -143,11 +143,7 @@ class LightsMethod(Method):
         _check_samples("light samples", light_samples)
         _check_samples("ambient-occlusion samples", ao_samples)
         self.light_samples, self.ao, self.ao_samples, self.seed, self.order = light_samples, ao, ao_samples, seed, order
-        self._parts = PerEnvironment(lambda env: self._decompose(env, params))
-
-    def _decompose(self, env, params):
-        dec = decompose(env, params)
-        return dec, project(dec.ambient, self.order).to_irradiance(), _visibility_map(dec.ambient)
+        self._parts = PerEnvironment(lambda env: _lights_parts(env, params, order))
 
     def decomposition(self, scene: Scene):
         """The scene environment's decomposition (found once per environment)."""
@@ -172,6 +168,22 @@ class LightsMethod(Method):
         ao = f", ambient occlusion ({self.ao_samples} rays)" if self.ao else ""
         return (f"area lights ({self.light_samples} shadow rays each) + ambient SH order {self.order}{ao}, "
                 f"seed {self.seed}")
+
+
+_LAST_PARTS: dict = {"env": None, "parts": {}}  # the decompositions of the last environment, by (params, order)
+
+
+def _lights_parts(env, params: LightParams | None, order: int):
+    """The decomposition of ``env``, its ambient's SH irradiance and brightness map — shared by every ``lights``
+    method on the same environment (``lights`` and ``lights --ao`` side by side decompose once). Only the last
+    environment is kept, compared by identity as :class:`PerEnvironment` does."""
+    if _LAST_PARTS["env"] is not env:
+        _LAST_PARTS["env"], _LAST_PARTS["parts"] = env, {}
+    key = (params or LightParams(), order)
+    if key not in _LAST_PARTS["parts"]:
+        dec = decompose(env, params)
+        _LAST_PARTS["parts"][key] = (dec, project(dec.ambient, order).to_irradiance(), _visibility_map(dec.ambient))
+    return _LAST_PARTS["parts"][key]
 
 
 class PointLightsMethod(Method):
