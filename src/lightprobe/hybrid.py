@@ -18,8 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .envmap import EnvMap
-from .irradiance import ErrorReport, IrradianceMap, compare_irradiance
-from .layouts import layout as layout_named
+from .irradiance import ErrorReport, IrradianceMap, compare_irradiance, irradiance_map_of
 from .lights import Decomposition, LightParams, decompose
 from .sh import SHCoeffs, project
 
@@ -96,11 +95,8 @@ def hybrid_irradiance_map(env: EnvMap, target, size: int, ambient_order: int = D
                           hybrid: HybridIrradiance | None = None) -> IrradianceMap:
     """An irradiance map (E, not /π) of ``env`` by the hybrid, in layout ``target`` of ``size`` — the counterpart of
     :func:`lightprobe.irradiance.irradiance_map` for ``method="hybrid"``."""
-    lay = layout_named(target)
-    grid = lay.grid_shape(size)
     hybrid = hybrid or hybrid_irradiance(env, ambient_order=ambient_order)
-    values = hybrid.evaluate(lay.directions(grid))
-    return IrradianceMap(np.where(lay.valid_mask(grid)[..., None], values, 0.0).astype(np.float32), lay, "hybrid")
+    return irradiance_map_of(hybrid.evaluate, target, size, "hybrid")
 
 
 def hybrid_error_report(env: EnvMap, normals: np.ndarray, reference: np.ndarray, hybrid: HybridIrradiance

@@ -109,18 +109,21 @@ def irradiance_map(env: EnvMap, target: str | Layout, size: int, method: str = "
                    window: str = "none", sh: SHCoeffs | None = None) -> IrradianceMap:
     """An irradiance map of ``env`` in layout ``target`` of ``size``: ``sh`` (order l_max, optional window) or
     ``brute`` (the exact integral per texel)."""
-    lay = layout_named(target)
-    grid = lay.grid_shape(size)
-    normals = lay.directions(grid)
-    valid = lay.valid_mask(grid)
     if method == "sh":
         coeffs = (sh or project(env, l_max)).windowed(window).to_irradiance()
-        values = coeffs.evaluate(normals)
-    elif method == "brute":
-        values = brute_irradiance(env, normals)
-    else:
-        raise UsageError(f"unknown method {method!r}; use sh or brute")
-    return IrradianceMap(np.where(valid[..., None], values, 0.0).astype(np.float32), lay, method)
+        return irradiance_map_of(coeffs.evaluate, target, size, method)
+    if method == "brute":
+        return irradiance_map_of(lambda normals: brute_irradiance(env, normals), target, size, method)
+    raise UsageError(f"unknown method {method!r}; use sh or brute")
+
+
+def irradiance_map_of(irradiance, target: str | Layout, size: int, method: str) -> IrradianceMap:
+    """The map of ``irradiance(normals)`` (E at world-frame unit normals (..., 3)) over every texel direction of
+    layout ``target`` of ``size``; texels outside the layout's valid area are 0."""
+    lay = layout_named(target)
+    grid = lay.grid_shape(size)
+    values = irradiance(lay.directions(grid))
+    return IrradianceMap(np.where(lay.valid_mask(grid)[..., None], values, 0.0).astype(np.float32), lay, method)
 
 
 # ---- error analysis -------------------------------------------------------------------------------------------------
