@@ -141,12 +141,15 @@ def speed() -> None:
     scene = mesh_scene(SHARED / "meshes/stanford/bun_zipper_res2.ply", grace, 256, 256)
     tracer = Tracer(scene)
     sh, lights = method("sh"), method("lights", light_samples=16)
-    render(scene, sh, 1, tracer), render(scene, lights, 1, tracer)  # warm-ups, decomposition cached
+    ao = method("lights", light_samples=16, ao=True, ao_samples=16)
+    for m in (sh, lights, ao):
+        render(scene, m, 1, tracer)  # warm-ups, decomposition cached
     t_sh = best_of(lambda: render(scene, sh, 1, tracer), 3)
     t_lights = best_of(lambda: render(scene, lights, 1, tracer), 3)
+    t_ao = best_of(lambda: render(scene, ao, 1, tracer), 3)
     n = len(lights.decomposition(scene).lights)
     print(f"bunny 256², 1 spp, {n} lights × 16 shadow rays: sh {t_sh:.3f} s, lights {t_lights:.3f} s = "
-          f"{t_lights / t_sh:.1f}× sh (target ≤ 5×)")
+          f"{t_lights / t_sh:.1f}× sh (target ≤ 5×); lights --ao (16 rays) {t_ao:.3f} s = {t_ao / t_sh:.1f}× sh")
 
 
 def main() -> int:

@@ -11,8 +11,8 @@ from conftest import random_directions, shared
 from lightprobe.envmap import EnvMap, box_reduce, read_envmap
 from lightprobe.frames import RH2001, rotation_from_ypr
 from lightprobe.layouts import LATLONG, LAYOUTS
-from lightprobe.sh import (SHCoeffs, a_hat, basis, delta_light, index, n_coeffs, normalisation, project,
-                           transform_matrix, window_weights)
+from lightprobe.sh import (SHCoeffs, _series, _recurrence_tables, a_hat, basis, delta_light, index, n_coeffs,
+                           normalisation, project, series, transform_matrix, window_weights)
 
 
 def test_basis_matches_the_paper_table():
@@ -35,6 +35,21 @@ def test_basis_against_the_definition_at_high_order():
             p = lpmv(abs(m), l, np.cos(theta)) * (-1) ** abs(m)  # scipy includes the CS phase; undo it
             az = 1 if m == 0 else np.sqrt(2) * (np.cos(m * phi) if m > 0 else np.sin(-m * phi))
             np.testing.assert_allclose(got[:, index(l, m)], normalisation(l, m) * p * az, atol=1e-9)
+
+
+@pytest.mark.parametrize("l_max", [0, 1, 3, 12, 24])
+def test_the_compiled_series_is_the_basis_times_the_coefficients(l_max):
+    """series() (the compiled kernel, called directly so numpy's path cannot stand in for it) equals
+    basis(l_max, d) @ coeffs to rounding, for one and for three channels."""
+    d = random_directions(500, seed=l_max)
+    rng = np.random.default_rng(l_max)
+    for coeffs in (rng.normal(size=(n_coeffs(l_max), 3)), rng.normal(size=(n_coeffs(l_max), 1))):
+        out = np.empty((len(d), coeffs.shape[1]))
+        _series(d, coeffs, *_recurrence_tables(l_max), out)
+        expected = basis(l_max, d) @ coeffs
+        np.testing.assert_allclose(out, expected, atol=1e-12 * np.abs(expected).max() * n_coeffs(l_max))
+    np.testing.assert_allclose(series(l_max, d[:7].reshape(7, 1, 3), coeffs[:, 0]), (basis(l_max, d[:7]) @
+                               coeffs[:, 0])[:, None], atol=1e-12 * n_coeffs(l_max))
 
 
 def test_basis_is_orthonormal():

@@ -241,7 +241,8 @@ def visible_cosine_over_cap(tracer: Tracer, origins: np.ndarray, normals: np.nda
 
     Exact where nothing can block the cap (:meth:`Tracer.may_block`) and the whole cap is above the shading
     horizon (n·d ≥ sin r): n·d · π sin² r. Zero where it is wholly below (n·d ≤ −sin r). Elsewhere ``n`` stratified
-    samples uniform in solid angle (:func:`lightprobe.render.sampling.cap_rays`), one shadow ray each."""
+    samples uniform in solid angle (:func:`lightprobe.render.sampling.cap_rays`); a shadow ray is traced for each
+    sample above the horizon that the scene's bounds cannot rule out (those they do are counted as seen)."""
     from .sampling import cap_rays, uniforms
 
     axis = np.asarray(direction, dtype=np.float64)
@@ -250,18 +251,39 @@ def visible_cosine_over_cap(tracer: Tracer, origins: np.ndarray, normals: np.nda
     out = np.where(cos_to >= bound, cos_to * np.pi * bound * bound, 0.0)
     sampled = np.nonzero((cos_to > -bound) & (tracer.may_block(origins, axis, radius) | (cos_to < bound)))[0]
     t, s = _frame(axis)
-    solid = 2 * np.pi * (1 - np.cos(radius))
+    solid, cos_r = 2 * np.pi * (1 - np.cos(radius)), float(np.cos(radius))
     for part in _batches(sampled.size, n):
         which = sampled[part]
         m = which.size
         ray_orig, ray_dir = np.empty((m * n, 3), np.float32), np.empty((m * n, 3), np.float32)
-        cosine = np.empty(m * n)
-        cap_rays(normals[which], origins[which], axis, t, s, float(np.cos(radius)), uniforms(rng, m, n), ray_orig,
-                 ray_dir, cosine)
-        # every sample is traced: picking out those above the horizon costs numpy more than Embree spends on them
-        seen = np.where(tracer.occluded(ray_orig, ray_dir), 0.0, np.maximum(cosine, 0.0))
-        out[which] = seen.reshape(m, n).sum(axis=1) * (solid / n)
+        cosine, traced, free = np.empty(m * n), np.empty(m, np.int64), np.empty(m)
+        cap_rays(normals[which], origins[which], axis, t, s, cos_r, uniforms(rng, m, n), *tracer.ray_bounds,
+                 ray_orig, ray_dir, cosine, traced, free)
+        offsets, (ray_orig, ray_dir, cosine) = _gathered(n, traced, ray_orig, ray_dir, cosine)
+        seen = free + _sums(offsets, np.where(tracer.occluded(ray_orig, ray_dir), 0.0, cosine))
+        out[which] = seen * (solid / n)
     return out
+
+
+def _gathered(n: int, traced: np.ndarray, ray_orig, ray_dir, values):
+    """The rays the kernels wrote at the head of each point's n rows (``traced`` per point), packed: the points'
+    offsets into the packed rows (m + 1) and the packed (origins, directions, values)."""
+    from .sampling import compact
+
+    offsets = np.zeros(len(traced) + 1, np.int64)
+    np.cumsum(traced, out=offsets[1:])
+    if offsets[-1] == len(values):  # every sample needs its ray
+        return offsets, (ray_orig, ray_dir, values)
+    packed = np.empty((offsets[-1], 3), np.float32), np.empty((offsets[-1], 3), np.float32), np.empty(offsets[-1])
+    compact(n, offsets, ray_orig, ray_dir, values, *packed)
+    return offsets, packed
+
+
+def _sums(offsets: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Per point, the sum of its packed values (rows offsets[p] to offsets[p+1])."""
+    running = np.zeros(len(values) + 1)
+    np.cumsum(values, out=running[1:])
+    return running[offsets[1:]] - running[offsets[:-1]]
 
 
 # ---- the ambient's shadows --------------------------------------------------------------------------------------
@@ -286,7 +308,8 @@ def ambient_visibility(tracer: Tracer, origins: np.ndarray, normals: np.ndarray,
     sky; weighting by the ambient's own brightness (``brightness``: a 32-row blurred lat-long of its luminance, read
     bilinearly) removes that bias where the ambient is directional, and it keeps SH's accuracy exactly where nothing
     is blocked (the ratio is 1). A bent normal would need the same rays and still treat every direction alike.
-    Points whose rays all see black get 1."""
+    Points whose rays all see black get 1. Rays the scene's bounds rule out (:func:`lightprobe.render.sampling
+    .may_hit`) count as seen without being traced."""
     from .sampling import cosine_rays, uniforms
 
     normals, origins = np.ascontiguousarray(normals, np.float64), np.ascontiguousarray(origins, np.float64)
@@ -295,12 +318,11 @@ def ambient_visibility(tracer: Tracer, origins: np.ndarray, normals: np.ndarray,
     for part in _batches(len(origins), n):
         m = part.stop - part.start
         ray_orig, ray_dir, y = np.empty((m * n, 3), np.float32), np.empty((m * n, 3), np.float32), np.empty(m * n)
+        traced, free, total = np.empty(m, np.int64), np.empty(m), np.empty(m)
         cosine_rays(normals[part], tangent[part], bitangent[part], origins[part], uniforms(rng, m, n), brightness,
-                    ray_orig, ray_dir, y)
-        blocked = tracer.occluded(ray_orig, ray_dir).reshape(m, n)
-        y = y.reshape(m, n)
-        total = y.sum(axis=1)
-        seen = np.where(blocked, 0.0, y).sum(axis=1)
+                    *tracer.ray_bounds, ray_orig, ray_dir, y, traced, free, total)
+        offsets, (ray_orig, ray_dir, y) = _gathered(n, traced, ray_orig, ray_dir, y)
+        seen = free + _sums(offsets, np.where(tracer.occluded(ray_orig, ray_dir), 0.0, y))
         out[part] = np.where(total > 0, seen / np.where(total > 0, total, 1.0), 1.0)
     return out
 

@@ -8,6 +8,7 @@ Mitsuba's ``twosided`` BSDF), so open meshes such as the Stanford bunny shade th
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -56,6 +57,7 @@ class Tracer:
         self._intersector = RayMeshIntersector(mesh, scale_to_box=False)
         self.extent = float(np.ptp(self.vertices, axis=0).max())
         self._bounds = [_bound(m.vertices, self.extent) for m in scene.meshes]
+        self.ray_bounds = _ray_bounds(scene.meshes, self._bounds, self.extent)
 
     def may_block(self, points: np.ndarray, axis: np.ndarray, half_angle: float) -> np.ndarray:
         """False where no ray from the point within ``half_angle`` of unit ``axis`` can hit any mesh — a cheap,
@@ -107,8 +109,6 @@ class Tracer:
         Embree's occlusion query (any hit ends the ray: cheaper than trimesh's ``intersects_any``, which finds the
         closest), float32 as Embree stores the scene, in chunks shared by the threads of
         :func:`lightprobe.limits.threads` — embreex releases the GIL while Embree traces."""
-        from concurrent.futures import ThreadPoolExecutor
-
         from ..limits import threads
 
         origins, directions = (np.asarray(a, dtype=np.float32).reshape(-1, 3) for a in (origins, directions))
@@ -123,8 +123,11 @@ class Tracer:
             part = slice(start, start + step)
             out[part] = scene.run(origins[part], directions[part], query="OCCLUDED") == 0  # 0: blocked, −1: free
 
-        with ThreadPoolExecutor(min(threads(), -(-len(out) // step))) as pool:
-            list(pool.map(trace, range(0, len(out), step)))
+        starts = range(0, len(out), step)
+        if len(starts) == 1:
+            trace(0)
+        else:
+            list(_pool().map(trace, starts))
         return out
 
     def shadow_origins(self, hits: Hits) -> np.ndarray:
@@ -147,6 +150,22 @@ class Tracer:
         return out
 
 
+_POOL: dict = {}
+os.register_at_fork(after_in_child=_POOL.clear)  # a forked child has none of its parent's threads
+
+
+def _pool():
+    """The shadow-ray threads, started once per process and thread count (starting them per call cost ~8 ms)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from ..limits import threads
+
+    n = threads()
+    if n not in _POOL:
+        _POOL[n] = ThreadPoolExecutor(n, thread_name_prefix="lightprobe-rays")
+    return _POOL[n]
+
+
 def _bound(vertices: np.ndarray, extent: float) -> tuple[str, np.ndarray, float]:
     """A mesh's bound for :meth:`Tracer.may_block`: ("plane", unit normal, offset) when every vertex lies within
     1e-7 of the scene's size of one plane, else ("sphere", centre, radius) around its box's centre."""
@@ -159,6 +178,42 @@ def _bound(vertices: np.ndarray, extent: float) -> tuple[str, np.ndarray, float]
         if np.abs(vertices @ normal - offset).max() <= 1e-7 * max(extent, 1e-300):
             return "plane", normal, offset
     return "sphere", centre, radius
+
+
+RayBounds = tuple  # (planes (P, 4): unit normal, offset; roots (M, 2, 3); leaf ranges (M, 2); leaves (L, 2, 3))
+LEAF_DEPTH = 5  # each solid mesh's triangles split in 2⁵ = 32 boxes for the per-ray test
+
+
+def _ray_bounds(meshes, bounds, extent: float) -> RayBounds:
+    """The scene's bounds for the shadow-ray kernels' per-ray test (:func:`lightprobe.render.sampling.may_hit`):
+    each flat mesh as its plane, each other mesh as its box and the boxes of 32 groups of its triangles (split at
+    the median centroid along the longest side, recursively) — a ray that enters none of them cannot hit the mesh.
+    Boxes are padded by 10⁻⁵ of the scene's size, far above float32 rounding of the rays Embree traces."""
+    pad = 1e-5 * max(extent, 1e-30)
+    planes, roots, ranges, leaves = [], [], [], []
+    for mesh, (kind, a, b) in zip(meshes, bounds):
+        if kind == "plane":
+            planes.append([*a, b])
+            continue
+        corners = mesh.vertices[mesh.faces]  # (F, 3 corners, 3)
+        groups = _split(corners.mean(axis=1), np.arange(len(corners)), LEAF_DEPTH)
+        ranges.append([len(leaves), len(leaves) + len(groups)])
+        leaves += [[corners[g].reshape(-1, 3).min(axis=0) - pad, corners[g].reshape(-1, 3).max(axis=0) + pad]
+                   for g in groups]
+        roots.append([mesh.vertices.min(axis=0) - pad, mesh.vertices.max(axis=0) + pad])
+    return (np.array(planes, dtype=np.float64).reshape(-1, 4), np.array(roots, dtype=np.float64).reshape(-1, 2, 3),
+            np.array(ranges, dtype=np.int64).reshape(-1, 2), np.array(leaves, dtype=np.float64).reshape(-1, 2, 3))
+
+
+def _split(centres: np.ndarray, which: np.ndarray, depth: int) -> list[np.ndarray]:
+    """Triangle groups: ``which`` halved at the median of its centres along their widest axis, ``depth`` times."""
+    if depth == 0 or len(which) < 2:
+        return [which]
+    c = centres[which]
+    axis = int(np.argmax(np.ptp(c, axis=0)))
+    order = which[np.argsort(c[:, axis], kind="stable")]
+    half = len(order) // 2
+    return _split(centres, order[:half], depth - 1) + _split(centres, order[half:], depth - 1)
 
 
 def _texture_lookup(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
