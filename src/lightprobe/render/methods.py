@@ -26,6 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..baselines import check_count, median_cut, variance_minimisation
+from ..brdf import tangent_frame
 from ..errors import UsageError
 from ..hybrid import DEFAULT_AMBIENT_ORDER, hybrid_irradiance
 from ..irradiance import brute_irradiance
@@ -218,17 +219,6 @@ class VarminMethod(PointLightsMethod):
 
 
 # ---- sampling ---------------------------------------------------------------------------------------------------
-def _frame(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Two unit vectors completing unit ``axis`` (..., 3) to an orthonormal frame (Duff et al. 2017, branchless)."""
-    x, y, z = axis[..., 0], axis[..., 1], axis[..., 2]
-    sign = np.where(z >= 0, 1.0, -1.0)
-    a = -1.0 / (sign + z)
-    b = x * y * a
-    t = np.stack([1 + sign * x * x * a, sign * b, -sign * x], axis=-1)
-    s = np.stack([b, sign + y * y * a, -y], axis=-1)
-    return t, s
-
-
 def _batches(points: int, per_point: int):
     step = max(1, RAYS_PER_BATCH // per_point)
     return (slice(i, min(i + step, points)) for i in range(0, points, step))
@@ -250,7 +240,7 @@ def visible_cosine_over_cap(tracer: Tracer, origins: np.ndarray, normals: np.nda
     cos_to, bound = normals @ axis, float(np.sin(radius))
     out = np.where(cos_to >= bound, cos_to * np.pi * bound * bound, 0.0)
     sampled = np.nonzero((cos_to > -bound) & (tracer.may_block(origins, axis, radius) | (cos_to < bound)))[0]
-    t, s = _frame(axis)
+    t, s = tangent_frame(axis)
     solid, cos_r = 2 * np.pi * (1 - np.cos(radius)), float(np.cos(radius))
     for part in _batches(sampled.size, n):
         which = sampled[part]
@@ -313,7 +303,7 @@ def ambient_visibility(tracer: Tracer, origins: np.ndarray, normals: np.ndarray,
     from .sampling import cosine_rays, uniforms
 
     normals, origins = np.ascontiguousarray(normals, np.float64), np.ascontiguousarray(origins, np.float64)
-    tangent, bitangent = (np.ascontiguousarray(v) for v in _frame(normals))
+    tangent, bitangent = (np.ascontiguousarray(v) for v in tangent_frame(normals))
     out = np.ones(len(origins))
     for part in _batches(len(origins), n):
         m = part.stop - part.start

@@ -1,0 +1,629 @@
+"""Isotropic BRDFs for glossy radiance maps and rendering (Cabral, Olano & Nemec 1999; SPEC §4).
+
+Conventions, the same for every class here:
+
+* directions are unit vectors **leaving** the surface, in any one frame shared by all arguments: ``wi`` toward the
+  light, ``wo`` toward the eye, ``n`` the surface normal; arrays of shape (..., 3) that broadcast together;
+* ``eval(wi, wo, n)`` returns the BRDF value f_r (sr⁻¹, **not** multiplied by the cosine n·wi), linear RGB, shape
+  (..., 3); 0 where either direction is below the surface (n·wi ≤ 0 or n·wo ≤ 0): no transmission;
+* ``sample(wo, n, u)`` draws incident directions for the uniforms ``u`` (..., 2) in [0, 1)² by importance sampling,
+  returning (wi, pdf) with pdf in solid angle (sr⁻¹); samples below the surface have weight 0 in ``eval``;
+* ``central`` is the direction the paper's warp is built on: ``"normal"`` for diffuse-like BRDFs, ``"mirror"`` for
+  specular-like ones.
+
+GGX (Trowbridge–Reitz) uses the normalised distribution D with α the width (α = roughness² in the engines' terms),
+the separable Smith shadowing G1(wi)·G1(wo) and the Fresnel term at the microfacet (h·wi), exactly the model of
+Mitsuba 3's ``roughconductor`` with ``distribution: ggx`` (a test renders both). ``f0 = 1`` is no Fresnel at all.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import UsageError
+from .jit import njit, prange
+
+# RGB complex indices of refraction (η, k) of Mitsuba 3's conductor presets, read from its scalar_rgb variant
+# (its spectral data reduced to RGB): the names `conductor=gold` etc. mean exactly what Mitsuba's do.
+CONDUCTORS = {
+    "gold": ((0.143036, 0.375307, 1.44205), (3.983, 2.38556, 1.60336)),  # Au
+    "silver": ((0.155276, 0.116728, 0.138388), (4.82835, 3.12222, 2.1469)),  # Ag
+    "copper": ((0.201005, 0.92375, 1.10222), (3.91326, 2.45305, 2.14209)),  # Cu
+    "aluminium": ((1.6575, 0.880405, 0.521244), (9.22381, 6.2695, 4.837)),  # Al
+    "chromium": ((4.36967, 2.91651, 1.6549), (5.20655, 4.23131, 3.7547)),  # Cr
+}
+MITSUBA_CONDUCTOR_NAMES = {"gold": "Au", "silver": "Ag", "copper": "Cu", "aluminium": "Al", "chromium": "Cr"}
+MAX_EXPONENT = 1e5  # Phong / Blinn–Phong exponents above this are a mirror: use GGX with a small α
+
+
+# ---- vector helpers ---------------------------------------------------------------------------------------------
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.sum(a * b, axis=-1)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)
+
+
+def reflect(w: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """The mirror direction of ``w`` (leaving the surface) about ``n``: 2(n·w)n − w."""
+    return 2 * _dot(n, w)[..., None] * n - w
+
+
+def tangent_frame(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors t, s completing unit ``n`` (..., 3) to a right-handed orthonormal frame (t, s, n) (Duff et
+    al. 2017, branchless)."""
+    x, y, z = n[..., 0], n[..., 1], n[..., 2]
+    sign = np.where(z >= 0, 1.0, -1.0)
+    a = -1.0 / (sign + z)
+    b = x * y * a
+    t = np.stack([1 + sign * x * x * a, sign * b, -sign * x], axis=-1)
+    s = np.stack([b, sign + y * y * a, -y], axis=-1)
+    return t, s
+
+
+def _about(axis: np.ndarray, cos_t: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """Directions at polar angle acos(cos_t) and azimuth phi about unit ``axis``."""
+    t, s = tangent_frame(np.broadcast_to(axis, np.broadcast_shapes(axis.shape, cos_t.shape + (3,))))
+    sin_t = np.sqrt(np.clip(1 - cos_t * cos_t, 0.0, None))
+    return (sin_t * np.cos(phi))[..., None] * t + (sin_t * np.sin(phi))[..., None] * s + cos_t[..., None] * axis
+
+
+def _rgb(value, what: str) -> np.ndarray:
+    v = np.broadcast_to(np.asarray(value, dtype=np.float64), (3,)).copy()
+    if not np.isfinite(v).all():
+        raise UsageError(f"{what} must be finite, got {value!r}")
+    return v
+
+
+# ---- Fresnel ----------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Schlick:
+    """Schlick's approximation F = f0 + (1 − f0)(1 − cos)⁵, f0 RGB in [0, 1]; f0 = 1 is no Fresnel (F ≡ 1)."""
+
+    f0: tuple = (1.0, 1.0, 1.0)
+
+    def __post_init__(self):
+        f0 = _rgb(self.f0, "f0")
+        if (f0 < 0).any() or (f0 > 1).any():
+            raise UsageError(f"f0 must be in [0, 1], got {self.f0!r}")
+        object.__setattr__(self, "f0", tuple(f0))
+
+    def __call__(self, cos: np.ndarray) -> np.ndarray:
+        f0 = np.asarray(self.f0)
+        c = np.clip(cos, 0.0, 1.0)[..., None]
+        return f0 + (1 - f0) * (1 - c) ** 5
+
+
+@dataclass(frozen=True)
+class Dielectric:
+    """Exact unpolarised Fresnel reflectance from outside (index 1) onto a dielectric of relative index ``eta``."""
+
+    eta: float = 1.5
+
+    def __post_init__(self):
+        if not (math.isfinite(self.eta) and 1.0 <= self.eta <= 10.0):
+            raise UsageError(f"a dielectric's eta must be in [1, 10], got {self.eta!r}")
+
+    def __call__(self, cos: np.ndarray) -> np.ndarray:
+        c = np.clip(cos, 0.0, 1.0)
+        sin_t2 = (1 - c * c) / (self.eta * self.eta)
+        cos_t = np.sqrt(np.clip(1 - sin_t2, 0.0, None))
+        rs = (c - self.eta * cos_t) / (c + self.eta * cos_t)
+        rp = (self.eta * c - cos_t) / (self.eta * c + cos_t)
+        f = 0.5 * (rs * rs + rp * rp)
+        return np.repeat(f[..., None], 3, axis=-1)
+
+
+@dataclass(frozen=True)
+class Conductor:
+    """Exact unpolarised Fresnel reflectance of a conductor of complex index η + ik (RGB each), from outside (index
+    1): the full s/p formula (as Mitsuba's ``fresnel_conductor``), not Schlick."""
+
+    eta: tuple = CONDUCTORS["gold"][0]
+    k: tuple = CONDUCTORS["gold"][1]
+
+    def __post_init__(self):
+        eta, k = _rgb(self.eta, "eta"), _rgb(self.k, "k")
+        if (eta <= 0).any() or (k < 0).any():
+            raise UsageError(f"a conductor needs eta > 0 and k ≥ 0, got eta={self.eta!r}, k={self.k!r}")
+        object.__setattr__(self, "eta", tuple(eta))
+        object.__setattr__(self, "k", tuple(k))
+
+    def __call__(self, cos: np.ndarray) -> np.ndarray:
+        c = np.clip(cos, 0.0, 1.0)[..., None]
+        eta = np.asarray(self.eta) + 1j * np.asarray(self.k)
+        c2 = c * c
+        sin2 = 1 - c2
+        root = np.sqrt(eta * eta - sin2)  # η cos θ_t, complex
+        rs = (c - root) / (c + root)
+        rp = (eta * eta * c - root) / (eta * eta * c + root)
+        return 0.5 * (np.abs(rs) ** 2 + np.abs(rp) ** 2)
+
+
+# ---- the BRDFs --------------------------------------------------------------------------------------------------
+class BRDF:
+    """Base class: see the module's conventions. Subclasses set ``name``, ``central`` and ``params()``."""
+
+    name = "brdf"
+    central = "normal"
+
+    def eval(self, wi: np.ndarray, wo: np.ndarray, n: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def sample(self, wo: np.ndarray, n: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        raise NotImplementedError
+
+    def pdf(self, wi: np.ndarray, wo: np.ndarray, n: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def params(self) -> dict:
+        return {}
+
+    def kernel(self) -> tuple[int, np.ndarray, np.ndarray]:
+        """(model number, parameters, Fresnel table) for the compiled sums (:func:`reflected_sums`)."""
+        raise NotImplementedError
+
+    def lobe_width(self) -> float:
+        """A characteristic angular width (radians) of f·cos about the central direction: how fine a map must be
+        to resolve the lobe (texels a quarter of it or finer)."""
+        raise NotImplementedError
+
+    def spec(self) -> str:
+        """The ``name:key=value,…`` text :func:`parse_brdf` reads back to this BRDF."""
+        items = ",".join(f"{k}={_spec_value(v)}" for k, v in self.params().items())
+        return f"{self.name}:{items}" if items else self.name
+
+    def describe(self) -> dict:
+        return {"name": self.name, "central": self.central, **self.params()}
+
+    def __repr__(self):
+        return f"<BRDF {self.spec()}>"
+
+
+def _spec_value(v) -> str:
+    if isinstance(v, (tuple, list)):
+        return "/".join(f"{x:g}" for x in v)
+    return f"{v:g}" if isinstance(v, float) else str(v)
+
+
+def _above(wi, wo, n):
+    return (_dot(n, wi) > 0) & (_dot(n, wo) > 0)
+
+
+def _cosine_sample(n: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    cos_t = np.sqrt(1 - u[..., 0])
+    wi = _about(n, cos_t, 2 * np.pi * u[..., 1])
+    return wi, cos_t / np.pi
+
+
+@dataclass(repr=False)
+class Lambert(BRDF):
+    """f = albedo / π. Directional albedo exactly ``albedo`` at every view."""
+
+    albedo: tuple = (1.0, 1.0, 1.0)
+    name = "lambert"
+    central = "normal"
+
+    def __post_init__(self):
+        a = _rgb(self.albedo, "albedo")
+        if (a < 0).any() or (a > 1).any():
+            raise UsageError(f"albedo must be in [0, 1], got {self.albedo!r}")
+        self.albedo = tuple(a)
+
+    def eval(self, wi, wo, n):
+        return np.where(_above(wi, wo, n)[..., None], np.asarray(self.albedo) / np.pi, 0.0)
+
+    def sample(self, wo, n, u):
+        return _cosine_sample(n, u)
+
+    def pdf(self, wi, wo, n):
+        return np.maximum(_dot(n, wi), 0.0) / np.pi
+
+    def params(self):
+        return {} if self.albedo == (1.0, 1.0, 1.0) else {"albedo": self.albedo}
+
+    def kernel(self):
+        return LAMBERT, np.array(self.albedo), _NO_FRESNEL
+
+    def lobe_width(self):
+        return np.pi / 2
+
+
+def _exponent(value, what: str) -> float:
+    value = float(value)
+    if not (math.isfinite(value) and 0.0 <= value <= MAX_EXPONENT):
+        raise UsageError(f"{what} exponent n must be in [0, {MAX_EXPONENT:g}], got {value!r}")
+    return value
+
+
+@dataclass(repr=False)
+class Phong(BRDF):
+    """Normalised Phong (Lafortune & Willems 1994): f = ks (n + 2)/(2π) · max(0, r·wi)ⁿ, r the mirror of wo.
+    Its albedo is ks at normal view and falls toward grazing views, where the lobe dips below the surface."""
+
+    n: float = 50.0
+    ks: float = 1.0
+    name = "phong"
+    central = "mirror"
+
+    def __post_init__(self):
+        self.n = _exponent(self.n, "Phong")
+        if not 0 <= self.ks <= 1:
+            raise UsageError(f"ks must be in [0, 1], got {self.ks!r}")
+
+    def eval(self, wi, wo, n):
+        c = np.maximum(_dot(reflect(wo, n), wi), 0.0)
+        f = self.ks * (self.n + 2) / (2 * np.pi) * c ** self.n
+        return np.where(_above(wi, wo, n), f, 0.0)[..., None] * np.ones(3)
+
+    def sample(self, wo, n, u):
+        cos_t = u[..., 0] ** (1 / (self.n + 1))
+        wi = _about(reflect(wo, n), cos_t, 2 * np.pi * u[..., 1])
+        return wi, self.pdf(wi, wo, n)
+
+    def pdf(self, wi, wo, n):
+        c = np.maximum(_dot(reflect(wo, n), wi), 0.0)
+        return (self.n + 1) / (2 * np.pi) * c ** self.n
+
+    def params(self):
+        return {"n": self.n} if self.ks == 1 else {"n": self.n, "ks": self.ks}
+
+    def kernel(self):
+        return PHONG, np.array([self.n, self.ks]), _NO_FRESNEL
+
+    def lobe_width(self):
+        return min(np.pi / 2, math.sqrt(2 / max(self.n, 1e-9)))
+
+
+@dataclass(repr=False)
+class BlinnPhong(BRDF):
+    """Normalised Blinn–Phong: f = ks · c_n · (n·h)ⁿ, h the half vector, with the exact normalisation at normal view
+    c_n = (n + 2)(n + 4) / (8π (2^(−n/2) + n)) (Giesen 2009), so the albedo is exactly ks there; the common
+    (n + 8)/(8π) is its large-n limit and reflects more than comes in (1.07 at n = 5)."""
+
+    n: float = 50.0
+    ks: float = 1.0
+    name = "blinn"
+    central = "mirror"
+
+    def __post_init__(self):
+        self.n = _exponent(self.n, "Blinn–Phong")
+        if not 0 <= self.ks <= 1:
+            raise UsageError(f"ks must be in [0, 1], got {self.ks!r}")
+
+    def eval(self, wi, wo, n):
+        h = _unit(wi + wo)
+        norm = (self.n + 2) * (self.n + 4) / (8 * np.pi * (2 ** (-self.n / 2) + self.n))
+        f = self.ks * norm * np.maximum(_dot(n, h), 0.0) ** self.n
+        return np.where(_above(wi, wo, n), f, 0.0)[..., None] * np.ones(3)
+
+    def sample(self, wo, n, u):
+        cos_h = u[..., 0] ** (1 / (self.n + 1))
+        h = _about(n, cos_h, 2 * np.pi * u[..., 1])
+        wi = reflect(wo, h)
+        return wi, self.pdf(wi, wo, n)
+
+    def pdf(self, wi, wo, n):
+        h = _unit(wi + wo)
+        p_h = (self.n + 1) / (2 * np.pi) * np.maximum(_dot(n, h), 0.0) ** self.n
+        return p_h / np.maximum(4 * np.abs(_dot(wo, h)), 1e-300)
+
+    def params(self):
+        return {"n": self.n} if self.ks == 1 else {"n": self.n, "ks": self.ks}
+
+    def kernel(self):
+        norm = (self.n + 2) * (self.n + 4) / (8 * np.pi * (2 ** (-self.n / 2) + self.n))
+        return BLINN, np.array([self.n, self.ks * norm]), _NO_FRESNEL
+
+    def lobe_width(self):
+        return min(np.pi / 2, 2 * math.sqrt(2 / max(self.n, 1e-9)))
+
+
+def ggx_d(cos_h: np.ndarray, alpha: float) -> np.ndarray:
+    """The normalised GGX distribution D(h) (∫ D cos θ_h dω_h = 1)."""
+    c2 = np.clip(cos_h, 0.0, 1.0) ** 2
+    a2 = alpha * alpha
+    return np.where(cos_h > 0, a2 / (np.pi * (c2 * (a2 - 1) + 1) ** 2), 0.0)
+
+
+def smith_g1(cos: np.ndarray, alpha: float) -> np.ndarray:
+    """GGX Smith masking G1(w) = 2 cos / (cos + √(α² + (1 − α²) cos²)), cos = n·w (0 below the surface)."""
+    c = np.clip(cos, 0.0, 1.0)
+    a2 = alpha * alpha
+    return np.where(cos > 0, 2 * c / np.maximum(c + np.sqrt(a2 + (1 - a2) * c * c), 1e-300), 0.0)
+
+
+def _alpha(value) -> float:
+    value = float(value)
+    if not (math.isfinite(value) and 0.0 < value <= 1.0):
+        raise UsageError(f"GGX alpha must be in (0, 1], got {value!r}")
+    return value
+
+
+@dataclass(repr=False)
+class GGX(BRDF):
+    """Microfacet reflection: f = D(h) G1(wi) G1(wo) F(h·wi) / (4 (n·wi)(n·wo)) — Mitsuba 3's ``roughconductor``
+    (GGX, same α; the uncorrelated Smith G it uses). ``fresnel`` is :class:`Schlick` (f0 = 1 by default: no
+    Fresnel), :class:`Dielectric` or :class:`Conductor`. Sampled by D(h) cos θ_h."""
+
+    alpha: float = 0.2
+    fresnel: object = field(default_factory=Schlick)
+    name = "ggx"
+    central = "mirror"
+
+    def __post_init__(self):
+        self.alpha = _alpha(self.alpha)
+
+    def eval(self, wi, wo, n):
+        h = _unit(wi + wo)
+        cos_i, cos_o = _dot(n, wi), _dot(n, wo)
+        dg = ggx_d(_dot(n, h), self.alpha) * smith_g1(cos_i, self.alpha) * smith_g1(cos_o, self.alpha)
+        f = np.where(_above(wi, wo, n), dg / np.maximum(4 * cos_i * cos_o, 1e-300), 0.0)
+        return f[..., None] * self.fresnel(_dot(h, wi))
+
+    def sample(self, wo, n, u):
+        a2 = self.alpha * self.alpha
+        cos_h = np.sqrt((1 - u[..., 0]) / (1 + (a2 - 1) * u[..., 0]))
+        h = _about(n, cos_h, 2 * np.pi * u[..., 1])
+        wi = reflect(wo, h)
+        return wi, self.pdf(wi, wo, n)
+
+    def pdf(self, wi, wo, n):
+        h = _unit(wi + wo)
+        cos_h = _dot(n, h)
+        return ggx_d(cos_h, self.alpha) * np.maximum(cos_h, 0.0) / np.maximum(4 * np.abs(_dot(wo, h)), 1e-300)
+
+    def params(self):
+        out = {"alpha": self.alpha}
+        fr = self.fresnel
+        if isinstance(fr, Schlick):
+            if fr.f0 != (1.0, 1.0, 1.0):
+                out["f0"] = fr.f0 if len(set(fr.f0)) > 1 else fr.f0[0]
+        elif isinstance(fr, Dielectric):
+            out["ior"] = fr.eta
+        else:
+            name = next((k for k, v in CONDUCTORS.items() if v == (fr.eta, fr.k)), None)
+            out.update({"conductor": name} if name else {"eta": fr.eta, "k": fr.k})
+        return out
+
+    def kernel(self):
+        return GGX_MODEL, np.array([self.alpha]), fresnel_table(self.fresnel)
+
+    def lobe_width(self):
+        return min(np.pi / 2, 2 * self.alpha)
+
+
+@dataclass(repr=False)
+class Coat(BRDF):
+    """A clear coat over a diffuse base: GGX reflection off a dielectric of index ``ior`` (exact Fresnel), plus the
+    base's Lambertian albedo seen through the coat twice, f = f_GGX + (1 − F(n·wi))(1 − F(n·wo)) albedo/π.
+    Energy: what the coat reflects at a view is at most F of it, and the base gets at most the rest (≤ 1, tested)."""
+
+    alpha: float = 0.1
+    ior: float = 1.5
+    albedo: tuple = (0.5, 0.5, 0.5)
+    name = "coat"
+    central = "mirror"
+
+    def __post_init__(self):
+        self.alpha = _alpha(self.alpha)
+        self._coat = GGX(self.alpha, Dielectric(float(self.ior)))
+        self._base = Lambert(self.albedo)
+        self.albedo = self._base.albedo
+
+    def _through(self, cos):
+        return 1 - self._coat.fresnel(cos)
+
+    def eval(self, wi, wo, n):
+        base = self._base.eval(wi, wo, n) * self._through(_dot(n, wi)) * self._through(_dot(n, wo))
+        return self._coat.eval(wi, wo, n) + base
+
+    def specular_share(self, wo, n) -> np.ndarray:
+        """The probability of sampling the coat's lobe: its Fresnel weight at the view (at least 0.1, at most 0.9)."""
+        return np.clip(self._coat.fresnel(_dot(n, wo))[..., 0] * 2, 0.1, 0.9)
+
+    def sample(self, wo, n, u):
+        share = self.specular_share(wo, n)
+        pick = u[..., 0] < share
+        # the picked half of u[..., 0] stretched back to [0, 1): each lobe gets well-spread uniforms
+        u0 = np.where(pick, u[..., 0] / share, (u[..., 0] - share) / (1 - share))
+        v = np.stack(np.broadcast_arrays(np.clip(u0, 0.0, 1 - 1e-12), u[..., 1]), axis=-1)
+        wi = np.where(pick[..., None], self._coat.sample(wo, n, v)[0], _cosine_sample(n, v)[0])
+        return wi, self.pdf(wi, wo, n)
+
+    def pdf(self, wi, wo, n):
+        share = self.specular_share(wo, n)
+        return share * self._coat.pdf(wi, wo, n) + (1 - share) * self._base.pdf(wi, wo, n)
+
+    def params(self):
+        return {"alpha": self.alpha, "ior": float(self.ior), "albedo": self.albedo}
+
+    def kernel(self):
+        return COAT, np.array([self.alpha, *self.albedo]), fresnel_table(self._coat.fresnel)
+
+    def lobe_width(self):
+        return self._coat.lobe_width()
+
+
+# ---- compiled sums ----------------------------------------------------------------------------------------------
+LAMBERT, PHONG, BLINN, GGX_MODEL, COAT = range(5)  # model numbers of the compiled evaluation
+FRESNEL_STEPS = 16384  # entries of the tabulated Fresnel term over cos ∈ [0, 1] (read linearly: within 1e-5)
+_NO_FRESNEL = np.ones((2, 3))
+
+
+def fresnel_table(fresnel) -> np.ndarray:
+    """F(cos) RGB at cos = i / FRESNEL_STEPS, i = 0 … FRESNEL_STEPS, from the exact formula (read linearly by the
+    compiled sums, so the Fresnel formulas exist once, here in numpy)."""
+    return np.ascontiguousarray(fresnel(np.linspace(0.0, 1.0, FRESNEL_STEPS + 1)), dtype=np.float64)
+
+
+@njit(cache=True, inline="always")
+def _table(table, cos, c):  # pragma: no cover - compiled
+    x = min(max(cos, 0.0), 1.0) * (table.shape[0] - 1)
+    i = min(int(x), table.shape[0] - 2)
+    t = x - i
+    return table[i, c] * (1 - t) + table[i + 1, c] * t
+
+
+@njit(cache=True, inline="always")
+def _g1(cos, a2):  # pragma: no cover - compiled
+    return 2 * cos / (cos + math.sqrt(a2 + (1 - a2) * cos * cos))
+
+
+@njit(cache=True, inline="always")
+def brdf_times_cosine(model, p, table, i0, i1, i2, o0, o1, o2, n0, n1, n2, out):  # pragma: no cover - compiled
+    """out[:] = f_r(wi, wo; n) · (n·wi) for one pair, the model numbered ``model`` with parameters ``p`` (the
+    classes' ``kernel()``); 0 below the surface. The same formulas as the classes' ``eval``, tested equal."""
+    ci, co = n0 * i0 + n1 * i1 + n2 * i2, n0 * o0 + n1 * o1 + n2 * o2
+    if ci <= 0.0 or co <= 0.0:
+        out[0] = out[1] = out[2] = 0.0
+        return
+    if model == LAMBERT:
+        for c in range(3):
+            out[c] = p[c] / math.pi * ci
+        return
+    if model == PHONG:
+        r = 2 * co * n0 * i0 + 2 * co * n1 * i1 + 2 * co * n2 * i2 - (o0 * i0 + o1 * i1 + o2 * i2)  # r·wi
+        v = p[1] * (p[0] + 2) / (2 * math.pi) * max(r, 0.0) ** p[0] * ci
+        out[0] = out[1] = out[2] = v
+        return
+    h0, h1, h2 = i0 + o0, i1 + o1, i2 + o2
+    norm = math.sqrt(h0 * h0 + h1 * h1 + h2 * h2)
+    h0, h1, h2 = h0 / norm, h1 / norm, h2 / norm
+    ch = max(n0 * h0 + n1 * h1 + n2 * h2, 0.0)
+    if model == BLINN:
+        v = p[1] * ch ** p[0] * ci
+        out[0] = out[1] = out[2] = v
+        return
+    a2 = p[0] * p[0]
+    d = a2 / (math.pi * (ch * ch * (a2 - 1) + 1) ** 2) if ch > 0 else 0.0
+    spec = d * _g1(ci, a2) * _g1(co, a2) / (4 * co)  # times n·wi already: D G1 G1 / (4 n·wo)
+    hi = h0 * i0 + h1 * i1 + h2 * i2
+    for c in range(3):
+        out[c] = spec * _table(table, hi, c)
+    if model == COAT:
+        for c in range(3):
+            through = (1 - _table(table, ci, c)) * (1 - _table(table, co, c))
+            out[c] += through * p[1 + c] / math.pi * ci
+
+
+@njit(cache=True, parallel=True)
+def _eval_cosine_many(model, p, table, wi, wo, n, out):  # pragma: no cover - compiled
+    for k in prange(wi.shape[0]):
+        value = np.empty(3)
+        brdf_times_cosine(model, p, table, wi[k, 0], wi[k, 1], wi[k, 2], wo[k, 0], wo[k, 1], wo[k, 2], n[k, 0],
+                          n[k, 1], n[k, 2], value)
+        out[k, 0], out[k, 1], out[k, 2] = value[0], value[1], value[2]
+
+
+def compiled_eval_cosine(brdf: BRDF, wi: np.ndarray, wo: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """f_r · (n·wi) by the compiled path, for (..., 3) arrays that broadcast (tests hold it to ``eval``)."""
+    wi, wo, n = (np.ascontiguousarray(a, dtype=np.float64).reshape(-1, 3) for a in np.broadcast_arrays(wi, wo, n))
+    out = np.empty((len(wi), 3))
+    _eval_cosine_many(*brdf.kernel(), wi, wo, n, out)
+    return out
+
+
+@njit(cache=True, parallel=True)
+def reflected_sums(model, p, table, normals, views, dirs, weighted, out):  # pragma: no cover - compiled
+    """out[t] = Σ_s f_r(d_s, v_t; n_t) (n_t·d_s)⁺ W_s for every point t: the reflected radiance of sources of
+    (RGB) weight W_s = L_s Δω_s in unit directions d_s, summed exactly — O(points × sources)."""
+    for t in prange(normals.shape[0]):
+        value = np.empty(3)
+        acc0 = acc1 = acc2 = 0.0
+        n0, n1, n2 = normals[t, 0], normals[t, 1], normals[t, 2]
+        o0, o1, o2 = views[t, 0], views[t, 1], views[t, 2]
+        for s in range(dirs.shape[0]):
+            if n0 * dirs[s, 0] + n1 * dirs[s, 1] + n2 * dirs[s, 2] <= 0.0:
+                continue
+            brdf_times_cosine(model, p, table, dirs[s, 0], dirs[s, 1], dirs[s, 2], o0, o1, o2, n0, n1, n2, value)
+            acc0 += value[0] * weighted[s, 0]
+            acc1 += value[1] * weighted[s, 1]
+            acc2 += value[2] * weighted[s, 2]
+        out[t, 0], out[t, 1], out[t, 2] = acc0, acc1, acc2
+
+
+# ---- estimates and names ----------------------------------------------------------------------------------------
+def directional_albedo(brdf: BRDF, cos_view: np.ndarray, samples: int = 4096, seed: int = 0) -> np.ndarray:
+    """ρ(wo) = ∫ f_r(wi, wo) (n·wi) dwi, RGB, at views with n·wo = ``cos_view`` (1-D), by importance sampling
+    the BRDF with ``samples`` stratified samples (a white furnace: the light reflected under a uniform sky of
+    radiance 1)."""
+    cos_view = np.asarray(cos_view, dtype=np.float64)
+    n = np.array([0.0, 0.0, 1.0])
+    wo = np.stack([np.sqrt(1 - cos_view ** 2), np.zeros_like(cos_view), cos_view], axis=-1)[:, None, :]
+    side = int(math.ceil(math.sqrt(samples)))
+    rng = np.random.default_rng(seed)
+    grid = (np.stack(np.meshgrid(np.arange(side), np.arange(side), indexing="ij"), -1).reshape(-1, 2)
+            + rng.random((side * side, 2))) / side
+    wi, pdf = brdf.sample(wo, n, grid[None, :, :])
+    f = brdf.eval(wi, wo, n) * np.maximum(wi[..., 2], 0.0)[..., None]
+    weight = np.where(pdf[..., None] > 0, f / np.where(pdf > 0, pdf, 1.0)[..., None], 0.0)
+    return weight.mean(axis=1)
+
+
+BRDFS = {"lambert": Lambert, "phong": Phong, "blinn": BlinnPhong, "ggx": GGX, "coat": Coat}
+
+
+def _number(key: str, text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise UsageError(f"BRDF parameter {key} must be a number, got {text!r}") from None
+    if not math.isfinite(value):
+        raise UsageError(f"BRDF parameter {key} must be finite, got {text!r}")
+    return value
+
+
+def _triple(key: str, text: str):
+    parts = [_number(key, p) for p in text.split("/")]
+    if len(parts) not in (1, 3):
+        raise UsageError(f"BRDF parameter {key} takes one number or three as r/g/b, got {text!r}")
+    return parts[0] if len(parts) == 1 else tuple(parts)
+
+
+def parse_brdf(spec: str) -> BRDF:
+    """A BRDF from ``name:key=value,…`` — ``lambert``, ``phong:n=50``, ``blinn:n=50``, ``ggx:alpha=0.2,f0=0.04``,
+    ``ggx:alpha=0.2,conductor=gold`` or ``…,eta=0.2/0.4/1.4,k=4/2.4/1.6``, ``ggx:alpha=0.2,ior=1.5`` (exact
+    dielectric), ``coat:alpha=0.1,ior=1.5,albedo=0.5/0.1/0.1``. RGB values are one number or r/g/b."""
+    name, _, rest = str(spec).strip().partition(":")
+    if name not in BRDFS:
+        raise UsageError(f"unknown BRDF {name!r}; known: {', '.join(BRDFS)}")
+    options: dict[str, str] = {}
+    for item in filter(None, (p.strip() for p in rest.split(","))):
+        key, eq, value = item.partition("=")
+        if not eq or not key.strip() or not value.strip():
+            raise UsageError(f"BRDF parameters are key=value, got {item!r} in {spec!r}")
+        if key.strip() in options:
+            raise UsageError(f"BRDF parameter {key.strip()} given twice in {spec!r}")
+        options[key.strip()] = value.strip()
+    allowed = {"lambert": {"albedo"}, "phong": {"n", "ks"}, "blinn": {"n", "ks"},
+               "ggx": {"alpha", "f0", "ior", "conductor", "eta", "k"}, "coat": {"alpha", "ior", "albedo"}}[name]
+    unknown = sorted(set(options) - allowed)
+    if unknown:
+        raise UsageError(f"{name} has no parameter {unknown[0]!r}; it takes {', '.join(sorted(allowed))}")
+    if name == "ggx":
+        return GGX(_number("alpha", options.get("alpha", "0.2")), _fresnel(options))
+    values = {k: (_triple(k, v) if k == "albedo" else _number(k, v)) for k, v in options.items()}
+    return BRDFS[name](**values)
+
+
+def _fresnel(options: dict):
+    chosen = [k for k in ("f0", "ior", "conductor") if k in options] + (["eta/k"] if {"eta", "k"} & set(options)
+                                                                          else [])
+    if len(chosen) > 1:
+        raise UsageError(f"ggx takes one Fresnel: f0, ior, conductor or eta with k (got {', '.join(chosen)})")
+    if "ior" in options:
+        return Dielectric(_number("ior", options["ior"]))
+    if "conductor" in options:
+        if options["conductor"] not in CONDUCTORS:
+            raise UsageError(f"unknown conductor {options['conductor']!r}; known: {', '.join(CONDUCTORS)}")
+        return Conductor(*CONDUCTORS[options["conductor"]])
+    if "eta" in options or "k" in options:
+        if not {"eta", "k"} <= set(options):
+            raise UsageError("a conductor needs both eta and k")
+        return Conductor(_triple("eta", options["eta"]), _triple("k", options["k"]))
+    return Schlick(_triple("f0", options.get("f0", "1")))

@@ -1,0 +1,183 @@
+"""Reflected radiance and radiance environment maps for any isotropic BRDF (Cabral, Olano & Nemec 1999; SPEC §4).
+
+Quantity: **radiance** (the map's units): L_r(n; v) = ∫_{n·ω>0} f_r(ω, v; n) L(ω) (n·ω) dω, the light a surface of
+normal n sends toward the eye at v (both unit, world frame, leaving the surface).
+
+How it is computed (:func:`reflected_radiance`): the map is resampled (energy-conserving) into a world cube; its
+brightest texels (a sun) are taken out as point sources (:func:`lightprobe.prefilter.split_peaks`); the bounded
+rest is box-filtered down to the coarsest level whose texels are at most an eighth of the BRDF's lobe across
+(:meth:`~lightprobe.brdf.BRDF.lobe_width`), within a budget of evaluations; every texel of that level and every
+peak is then summed exactly by a compiled kernel (:func:`lightprobe.brdf.reflected_sums`). Wide lobes read a
+coarse level (Lambert: 8² faces), sharp ones a fine one; accuracy against a brute-force sum over every texel of the
+full cube is measured in tests/test_radiance.py and the level used is stated with each map.
+
+A **radiance map** for one view v is a ``sphere``-layout image in the view's frame T = [right, up, v]: the texel of
+local normal n_local (SPEC §2's n(x, y)) holds L_r(T n_local; v). As an :class:`~lightprobe.envmap.EnvMap` its layout
+is :class:`~lightprobe.layouts.Sphere` with camera axes T, whose texel direction is the mirror of v about that normal
+— so looking the map up at a surface's mirror direction reads that surface's reflected radiance.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .brdf import BRDF, reflected_sums
+from .envmap import EnvMap, box_reduce, resample
+from .errors import UsageError
+from .layouts import CUBE, Sphere
+from .prefilter import split_peaks
+
+WORKING_SIZE = 128  # face size of the working cube (0.7° texels)
+PEAKS = 64  # brightest texels summed as point sources
+TEXELS_PER_LOBE = 8  # a source level's texels are at most lobe_width / 8 across
+BUDGET = 1.5e9  # BRDF evaluations per call (points × source texels) above which a coarser level is taken
+MAX_MAP_SIZE = 2048
+
+
+@dataclass(frozen=True, eq=False)
+class Lighting:
+    """An environment prepared for :func:`reflected_radiance`: the box-filtered pyramid (finest first) of the
+    working cube's bounded part, and the peaks taken out of it (directions, RGB power ∫L dω)."""
+
+    levels: tuple
+    peak_directions: np.ndarray
+    peak_power: np.ndarray
+
+    def level_for(self, brdf: BRDF, points: int) -> int:
+        """The index of the level :func:`reflected_radiance` sums for ``points`` points: the coarsest whose
+        texels (π/2 / face size across) resolve the lobe, or the finest the budget allows."""
+        wanted = len(self.levels) - 1
+        while wanted > 0 and np.pi / 2 / self.levels[wanted].grid[-1] > brdf.lobe_width() / TEXELS_PER_LOBE:
+            wanted -= 1
+        while wanted < len(self.levels) - 1 and points * self.levels[wanted].data[..., 0].size > BUDGET:
+            wanted += 1
+        return wanted
+
+
+def prepare(env: EnvMap, size: int = WORKING_SIZE, peaks: int = PEAKS) -> Lighting:
+    """The :class:`Lighting` of ``env`` (radiance, world frame): resampled (energy-conserving) into a ``size`` cube,
+    split into ``peaks`` point sources and a bounded rest, and the rest's box-filtered pyramid."""
+    cube = env if env.layout == CUBE and env.grid[-1] == size else resample(env, CUBE, size)
+    rest, directions, power = split_peaks(cube, peaks)
+    levels = [rest]
+    while levels[-1].grid[-1] > 1:
+        levels.append(box_reduce(levels[-1]))
+    return Lighting(tuple(levels), directions, power)
+
+
+def _sources(level: EnvMap) -> tuple[np.ndarray, np.ndarray]:
+    """A level's texels as sources: unit directions (S, 3) and weights L·Δω (S, 3), texels without light left out."""
+    weights = level.data.reshape(-1, 3).astype(np.float64) * level.solid_angles().reshape(-1, 1)
+    keep = weights.max(axis=1) > 0
+    return np.ascontiguousarray(level.directions().reshape(-1, 3)[keep]), np.ascontiguousarray(weights[keep])
+
+
+def reflected_radiance(lighting: Lighting | EnvMap, brdf: BRDF, normals: np.ndarray, views: np.ndarray,
+                       level: int | None = None) -> np.ndarray:
+    """L_r(n; v) (radiance, RGB, (N, 3)) at unit ``normals`` (N, 3) seen from unit ``views`` (N, 3, or one (3,):
+    the direction toward the eye), world frame — see the module docstring for the method. ``level`` overrides
+    :meth:`Lighting.level_for` (0: every texel of the working cube, the brute-force sum)."""
+    if isinstance(lighting, EnvMap):
+        lighting = prepare(lighting)
+    normals = np.ascontiguousarray(np.asarray(normals, dtype=np.float64).reshape(-1, 3))
+    views = np.ascontiguousarray(np.broadcast_to(np.asarray(views, dtype=np.float64), normals.shape))
+    if level is None:
+        level = lighting.level_for(brdf, len(normals))
+    if not 0 <= level < len(lighting.levels):
+        raise UsageError(f"source level must be from 0 to {len(lighting.levels) - 1}, got {level}")
+    model, params, table = brdf.kernel()
+    out = np.zeros((len(normals), 3))
+    for dirs, weights in (_sources(lighting.levels[level]),
+                          (np.ascontiguousarray(lighting.peak_directions), np.ascontiguousarray(lighting.peak_power))):
+        if len(dirs):
+            part = np.empty_like(out)
+            reflected_sums(model, params, table, normals, views, dirs, weights, part)
+            out += part
+    return out
+
+
+# ---- views and their frames -------------------------------------------------------------------------------------
+def view_frame(view: np.ndarray) -> np.ndarray:
+    """T = [right, up, v] (columns) for unit view direction v: up is world +Y made perpendicular to v, or world −Z
+    where v is within ~8° of ±Y (|v_y| > 0.99), so every view has one (SPEC §4)."""
+    v = np.asarray(view, dtype=np.float64)
+    v = v / np.linalg.norm(v)
+    hint = np.array([0.0, 1.0, 0.0]) if abs(v[1]) <= 0.99 else np.array([0.0, 0.0, -1.0])
+    right = np.cross(hint, v)
+    right /= np.linalg.norm(right)
+    up = np.cross(v, right)
+    return np.stack([right, up, v], axis=1)
+
+
+def radiance_map(lighting: Lighting | EnvMap, brdf: BRDF, view: np.ndarray, size: int = 256) -> EnvMap:
+    """The radiance map of ``brdf`` for one ``view`` (unit, toward the eye, world frame): a ``size``² sphere-layout
+    :class:`EnvMap` whose layout's camera axes are :func:`view_frame` (view); texel of local normal n_local holds
+    L_r(T n_local; v); 0 outside the disc."""
+    if not 2 <= size <= MAX_MAP_SIZE:
+        raise UsageError(f"radiance map size must be from 2 to {MAX_MAP_SIZE}, got {size}")
+    frame = view_frame(view)
+    layout = Sphere(frame)
+    grid = layout.grid_shape(size)
+    normals_local = sphere_normals(size)
+    inside = layout.valid_mask(grid).reshape(-1)
+    data = np.zeros((size * size, 3))
+    normals = normals_local.reshape(-1, 3)[inside] @ frame.T
+    data[inside] = reflected_radiance(lighting, brdf, normals, frame[:, 2])
+    return EnvMap(data.reshape(size, size, 3).astype(np.float32), layout)
+
+
+def sphere_normals(size: int) -> np.ndarray:
+    """Local normals n = (x, y, √(1 − x² − y²)) at the texel centres of a ``size``² sphere map (x right, y up;
+    clamped onto the disc's rim outside it), (size, size, 3)."""
+    c = (np.arange(size) + 0.5) / size
+    x, y = np.meshgrid(2 * c - 1, 1 - 2 * c)
+    r = np.sqrt(x * x + y * y)
+    scale = np.where(r > 1, 1 / np.maximum(r, 1e-300), 1.0)
+    x, y = x * scale, y * scale
+    return np.stack([x, y, np.sqrt(np.clip(1 - x * x - y * y, 0.0, None))], axis=-1)
+
+
+def check_views(count: int) -> int:
+    if count not in (12, 42, 162):
+        raise UsageError(f"views must be 12, 42 or 162 (the icosahedron and its geodesic subdivisions), got {count}")
+    return count
+
+
+def geodesic_views(count: int = 12) -> tuple[np.ndarray, np.ndarray]:
+    """The view directions (count, 3) — an icosahedron's 12 vertices, or those of its 1- or 2-fold geodesic
+    subdivision (42, 162), unit — and the triangles (faces, 3) of the view mesh, counter-clockwise seen from
+    outside."""
+    check_views(count)
+    phi = (1 + math.sqrt(5)) / 2
+    v = np.array([[-1, phi, 0], [1, phi, 0], [-1, -phi, 0], [1, -phi, 0], [0, -1, phi], [0, 1, phi],
+                  [0, -1, -phi], [0, 1, -phi], [phi, 0, -1], [phi, 0, 1], [-phi, 0, -1], [-phi, 0, 1]], float)
+    faces = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4],
+                      [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9],
+                      [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]])
+    vertices = [tuple(x) for x in v / np.linalg.norm(v, axis=1, keepdims=True)]
+    while len(vertices) < count:
+        vertices, faces = _subdivide(vertices, faces)
+    return np.array(vertices), np.asarray(faces)
+
+
+def _subdivide(vertices: list, faces: np.ndarray) -> tuple[list, np.ndarray]:
+    """Each triangle into four, the new vertices (edge midpoints) pushed onto the unit sphere."""
+    vertices = list(vertices)
+    midpoint: dict = {}
+
+    def middle(a: int, b: int) -> int:
+        key = (min(a, b), max(a, b))
+        if key not in midpoint:
+            m = np.add(vertices[a], vertices[b])
+            vertices.append(tuple(m / np.linalg.norm(m)))
+            midpoint[key] = len(vertices) - 1
+        return midpoint[key]
+
+    out = []
+    for a, b, c in faces:
+        ab, bc, ca = middle(a, b), middle(b, c), middle(c, a)
+        out += [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]
+    return vertices, np.array(out)
