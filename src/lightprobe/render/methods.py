@@ -31,6 +31,7 @@ from ..errors import UsageError
 from ..hybrid import DEFAULT_AMBIENT_ORDER, hybrid_irradiance
 from ..irradiance import brute_irradiance
 from ..lights import LightParams, decompose
+from ..radiance import prepare, reflected_radiance
 from ..sh import SHCoeffs, project
 from ..tonemap import luminance
 from .raycast import Hits, Tracer
@@ -54,9 +55,11 @@ class PerEnvironment:
 
 
 class Method:
-    """Base class: ``shade(scene, tracer, hits)`` → outgoing radiance (len(hits), 3)."""
+    """Base class: ``shade(scene, tracer, hits)`` → outgoing radiance (len(hits), 3). ``glossy`` says whether it
+    shades materials with a BRDF (:attr:`Material.glossy`); those that do not are refused such scenes."""
 
     name = "method"
+    glossy = False
 
     def shade(self, scene: Scene, tracer: Tracer, hits: Hits) -> np.ndarray:
         raise NotImplementedError
@@ -102,15 +105,27 @@ class SHMethod(Method):
 
 
 class BruteMethod(Method):
-    """Exact irradiance at every pixel's normal by summing the whole map (no shadows)."""
+    """Exact irradiance at every pixel's normal by summing the whole map (no shadows); on a glossy material the
+    exact reflected radiance toward each pixel's own view (:func:`lightprobe.radiance.reflected_radiance`)."""
 
     name = "brute"
+    glossy = True
+
+    def __init__(self):
+        self._lighting = PerEnvironment(prepare)
 
     def shade(self, scene, tracer, hits):
-        return hits.albedo * brute_irradiance(scene.environment, hits.normal) / np.pi
+        out = hits.albedo * brute_irradiance(scene.environment, hits.normal) / np.pi
+        for k, mesh in enumerate(scene.meshes):
+            on = np.flatnonzero(hits.mesh == k)
+            if mesh.material.glossy and on.size:
+                out[on] = reflected_radiance(self._lighting.get(scene.environment), mesh.material.brdf,
+                                             hits.normal[on], hits.view[on])
+        return out
 
     def describe(self):
-        return "brute force: the whole map integrated at each pixel's normal (no shadows)"
+        return ("brute force: the whole map integrated at each pixel's normal, and each glossy pixel's own view "
+                "(no shadows)")
 
 
 class HybridMethod(Method):

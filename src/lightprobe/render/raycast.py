@@ -32,6 +32,7 @@ class Hits:
     face: np.ndarray  # triangle index within its mesh
     barycentric: np.ndarray
     back: np.ndarray  # True where the viewer sees the back of the triangle (normals were flipped)
+    view: np.ndarray  # unit direction from the hit toward the ray's origin (the eye): "wo" of the BRDFs
 
     def __len__(self) -> int:
         return len(self.ray)
@@ -100,8 +101,9 @@ class Tracer:
         geometric = np.where(facing[:, None], -geometric, geometric)
         shading = np.where(facing[:, None], -shading, shading)
         mesh_id = self.face_mesh[tri]
+        view = -directions[ray] / np.maximum(np.linalg.norm(directions[ray], axis=1, keepdims=True), 1e-300)
         return Hits(ray, location, shading, geometric, self._albedo(mesh_id, tri, bary), mesh_id,
-                    tri - self.face_offsets[mesh_id], bary, facing)
+                    tri - self.face_offsets[mesh_id], bary, facing, view)
 
     def occluded(self, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
         """True where a ray (towards a light at infinity) hits any geometry.

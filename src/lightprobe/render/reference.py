@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from ..envmap import EnvMap
-from ..errors import LightprobeError
+from ..errors import LightprobeError, UsageError
 from ..io import write_image
 from ..layouts import LATLONG
 from .renderer import Rendering
@@ -106,6 +106,28 @@ def _reflectance(mesh: MeshInstance, folder: Path, index: int) -> dict:
     return {"type": "bitmap", "filename": str(path), "raw": True, "filter_type": "bilinear", "wrap_mode": "repeat"}
 
 
+def mitsuba_bsdf(mesh: MeshInstance, folder: Path, index: int) -> dict:
+    """The Mitsuba 3 BSDF of a mesh's material, the same parameters: the albedo (or texture) as ``diffuse``; a
+    Lambert BRDF as ``diffuse``; GGX with a conductor's η, k as ``roughconductor`` (GGX, same α, η, k per RGB
+    channel), and GGX without Fresnel (f0 = 1) as ``roughconductor`` with ``material: none`` (Mitsuba's perfect
+    reflector). Others have no Mitsuba equivalent with the same formula, and are refused rather than approximated."""
+    from ..brdf import GGX, Conductor, Lambert, Schlick
+
+    brdf = mesh.material.brdf
+    if brdf is None:
+        return {"type": "diffuse", "reflectance": _reflectance(mesh, folder, index)}
+    if isinstance(brdf, Lambert):
+        return {"type": "diffuse", "reflectance": {"type": "rgb", "value": [float(x) for x in brdf.albedo]}}
+    if isinstance(brdf, GGX) and isinstance(brdf.fresnel, Conductor):
+        return {"type": "roughconductor", "distribution": "ggx", "alpha": brdf.alpha,
+                "eta": {"type": "rgb", "value": [float(x) for x in brdf.fresnel.eta]},
+                "k": {"type": "rgb", "value": [float(x) for x in brdf.fresnel.k]}}
+    if isinstance(brdf, GGX) and isinstance(brdf.fresnel, Schlick) and brdf.fresnel.f0 == (1.0, 1.0, 1.0):
+        return {"type": "roughconductor", "distribution": "ggx", "alpha": brdf.alpha, "material": "none"}
+    raise UsageError(f"mesh {mesh.name!r}: {brdf.spec()} has no Mitsuba 3 BSDF with the same formula (the reference "
+                     "renders Lambert, and GGX with a conductor or without Fresnel)")
+
+
 def scene_dict(mi, scene: Scene, folder: Path, spp: int, global_illumination: bool, seed: int) -> dict:
     cam = scene.camera
     env_path = folder / "environment.exr"
@@ -130,7 +152,7 @@ def scene_dict(mi, scene: Scene, folder: Path, spp: int, global_illumination: bo
         write_ply(ply, mesh)
         d[f"mesh{i}"] = {
             "type": "ply", "filename": str(ply), "face_normals": False,
-            "bsdf": {"type": "twosided", "bsdf": {"type": "diffuse", "reflectance": _reflectance(mesh, folder, i)}},
+            "bsdf": {"type": "twosided", "bsdf": mitsuba_bsdf(mesh, folder, i)},
         }
     return d
 

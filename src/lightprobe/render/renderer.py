@@ -51,6 +51,10 @@ def render(scene: Scene, method: Method, spp: int = 1, tracer: Tracer | None = N
                           f"{max_triangles()} (set LIGHTPROBE_MAX_TRIANGLES to raise it)")
     check_memory(render_memory(scene.camera.width, scene.camera.height, spp, scene.triangle_count), f"rendering {scene.camera.width}x{scene.camera.height} at {spp}x{spp} "
                                             "samples per pixel", kernels=True)
+    glossy = [m for m in scene.meshes if m.material.glossy]
+    if glossy and not method.glossy:
+        raise UsageError(f"the {method.name} method shades Lambertian surfaces only, and mesh {glossy[0].name!r} is "
+                         f"{glossy[0].material.brdf.spec()}: render it with brute or the reference")
     seconds = {}
     t0 = time.perf_counter()
     tracer = tracer or Tracer(scene)

@@ -10,11 +10,12 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
+from ..brdf import BRDF
 from ..envmap import EnvMap
 from ..errors import BudgetError, InputError, LightprobeError, short
 from ..frames import as_rotation
@@ -69,15 +70,25 @@ class Camera:
 
 @dataclass(frozen=True)
 class Material:
-    """Lambertian reflectance: ``albedo`` linear RGB, or ``texture`` (linear RGB image, looked up at the mesh UVs)."""
+    """Lambertian reflectance ``albedo`` (linear RGB) or ``texture`` (linear RGB image, looked up at the mesh UVs),
+    unless ``brdf`` names another BRDF (a :class:`lightprobe.brdf.BRDF`, e.g. GGX gold): then the surface is that
+    BRDF, and only the methods that shade glossy surfaces (``brute``, and the Mitsuba reference) can render it."""
 
     albedo: tuple[float, float, float] = (0.8, 0.8, 0.8)
     texture: np.ndarray | None = field(default=None, repr=False)
+    brdf: BRDF | None = None
 
     def __post_init__(self) -> None:
         a = np.asarray(self.albedo, dtype=np.float64)
         if a.shape != (3,) or not np.isfinite(a).all() or (a < 0).any() or (a > 1).any():
             raise LightprobeError(f"albedo must be three numbers in [0, 1], got {short(self.albedo)}")
+        if self.brdf is not None and not isinstance(self.brdf, BRDF):
+            raise LightprobeError(f"a material's brdf must be a lightprobe.brdf.BRDF, got {short(self.brdf)}")
+
+    @property
+    def glossy(self) -> bool:
+        """True when the surface is not the plain Lambertian albedo (``brdf`` is set)."""
+        return self.brdf is not None
 
 
 @dataclass(frozen=True, eq=False)
@@ -161,7 +172,7 @@ def load_mesh(path: str | os.PathLike, material: Material = Material()) -> MeshI
             from ..tonemap import srgb_decode
 
             texture = srgb_decode(np.asarray(image.convert("RGB"), dtype=np.float32) / 255.0)
-    mat = Material(material.albedo, texture if texture is not None else material.texture)
+    mat = replace(material, texture=texture if texture is not None else material.texture)
     return mesh_instance(loaded.vertices, loaded.faces, mat, uv=uv, name=path.stem)
 
 

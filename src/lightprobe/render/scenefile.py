@@ -9,12 +9,16 @@ A scene file::
       - {file: bunny.ply, albedo: [0.8, 0.8, 0.8], fit: 0.8, place_on_ground: true, rotate: [0, 0, 0]}
       - {shape: sphere, albedo: [0.7, 0.7, 0.7], radius: 0.3, center: [0.5, 0.3, 0]}
       - {shape: torus, major: 0.35, minor: 0.12, center: [0, 0.12, 0]}
+      - {shape: sphere, radius: 0.2, center: [0, 0.2, 0.5], material: {brdf: ggx, alpha: 0.2, conductor: gold}}
     ground: {albedo: [0.5, 0.5, 0.5], size: 20, height: 0}     # or ground: false
     background: true
 
 ``fit`` scales a mesh so its largest extent is that many units and centres it on x and z; ``place_on_ground`` sets
 its lowest point on the ground plane; then ``scale`` and ``translate`` apply. Albedo is linear RGB reflectance in
-[0, 1]; ``texture`` (an image file) with the mesh's UVs overrides it.
+[0, 1]; ``texture`` (an image file) with the mesh's UVs overrides it. ``material`` makes the surface another BRDF: a
+mapping with its name and parameters (``{brdf: ggx, alpha: 0.2, conductor: gold}``, ``{brdf: ggx, alpha: 0.1,
+eta: [0.2, 0.9, 1.1], k: [3.9, 2.5, 2.1]}``) or the same as text (``ggx:alpha=0.2,conductor=gold``; see
+:func:`lightprobe.brdf.parse_brdf`).
 
 Top-level keys starting with ``_`` are ignored: a place for YAML anchors (``_white: &white {albedo: [1, 1, 1]}``).
 Every field is checked for its type and range (:data:`RANGES`), unknown fields are refused (a typo is not silently
@@ -29,10 +33,11 @@ from __future__ import annotations
 
 import json
 import os
+from dataclasses import replace
 from pathlib import Path
 
 from ..envmap import EnvMap, read_envmap
-from ..errors import BudgetError, InputError, short
+from ..errors import BudgetError, InputError, UsageError, short
 from ..io import check_regular_file, read_image
 from ..limits import max_triangles
 from .scene import (SPHERE_TRIANGLES, TORUS_TRIANGLES, Camera, Material, MeshInstance, Scene, fitted,
@@ -180,8 +185,37 @@ class _TriangleBudget:
 
 
 SHAPE_TRIANGLES = {"sphere": SPHERE_TRIANGLES, "torus": TORUS_TRIANGLES}
-MESH_FIELDS = {"file", "shape", "albedo", "texture", "radius", "center", "major", "minor", "fit", "place_on_ground",
-               "rotate", "scale", "translate"}
+MESH_FIELDS = {"file", "shape", "albedo", "texture", "material", "radius", "center", "major", "minor", "fit",
+               "place_on_ground", "rotate", "scale", "translate"}
+
+
+def _brdf(spec, where: str):
+    """``material: {brdf: ggx, alpha: 0.2, conductor: gold}`` (or the spec text ``ggx:alpha=0.2,conductor=gold``)
+    as a BRDF; numbers, r/g/b lists and names as :func:`lightprobe.brdf.parse_brdf` takes them."""
+    from ..brdf import parse_brdf
+
+    if isinstance(spec, str):
+        text = spec
+    elif isinstance(spec, dict) and isinstance(spec.get("brdf"), str):
+        items = []
+        for key, value in spec.items():
+            if key == "brdf":
+                continue
+            if isinstance(value, list) and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                               for v in value):
+                value = "/".join(repr(float(v)) for v in value)
+            elif isinstance(value, bool) or not isinstance(value, (int, float, str)):
+                raise InputError(f"scene: {where}.{short(key)} must be a number, three numbers or a name, got "
+                                 f"{short(value)}")
+            items.append(f"{key}={value}")
+        text = spec["brdf"] + (":" + ",".join(items) if items else "")
+    else:
+        raise InputError(f"scene: {where} must be a mapping with a brdf name (e.g. {{brdf: ggx, alpha: 0.2}}), got "
+                         f"{short(spec)}")
+    try:
+        return parse_brdf(text)
+    except UsageError as e:
+        raise InputError(f"scene: {where}: {e}") from None
 
 
 def _mesh(entry, i: int, base: Path, ground_height: float, budget: _TriangleBudget, loaded: dict) -> MeshInstance:
@@ -189,7 +223,9 @@ def _mesh(entry, i: int, base: Path, ground_height: float, budget: _TriangleBudg
     material = Material(f.vector("albedo", (0.8, 0.8, 0.8), RANGES["albedo"]))
     texture = f.path("texture", base)
     if texture is not None:
-        material = Material(material.albedo, read_image(texture))
+        material = replace(material, texture=read_image(texture))
+    if f.has("material"):
+        material = replace(material, brdf=_brdf(f.spec["material"], f.name("material")))
     shape = f.spec.get("shape")
     if shape == "sphere":  # its triangles were counted before any mesh was built (see scene_from_dict)
         return sphere(f.number("radius", 0.5, RANGES["radius"]), f.vector("center", (0, 0.5, 0)), material)
@@ -206,8 +242,8 @@ def _mesh(entry, i: int, base: Path, ground_height: float, budget: _TriangleBudg
     mesh = loaded[file]
     budget.take(len(mesh.faces), f"meshes[{i}] ({file.name})")
     mesh = MeshInstance(mesh.vertices, mesh.faces, mesh.normals,
-                        Material(material.albedo, material.texture if material.texture is not None
-                                 else mesh.material.texture), mesh.uv, mesh.name)
+                        replace(material, texture=material.texture if material.texture is not None
+                                else mesh.material.texture), mesh.uv, mesh.name)
     if f.has("rotate"):
         mesh = transformed(mesh, 1.0, f.vector("rotate", None, RANGES["angle"]))
     if f.has("fit"):
