@@ -122,3 +122,149 @@ def test_a_radiance_map_holds_each_normals_reflected_radiance_at_its_mirror_dire
 def test_bad_map_sizes_are_refused(grace):
     with pytest.raises(UsageError, match="radiance map size"):
         radiance_map(grace, parse_brdf("lambert"), np.array([0, 0, 1.0]), 1)
+
+
+# ---- the command and the manifest ------------------------------------------------------------------------------
+def _run(capsys, *argv):
+    from lightprobe.cli import main
+
+    code = main([str(a) for a in argv])
+    return (code, *capsys.readouterr())
+
+
+@pytest.fixture(scope="module")
+def small_probe(tmp_path_factory):
+    from lightprobe.io import write_image
+
+    path = tmp_path_factory.mktemp("probe") / "probe.exr"
+    env = read_envmap(shared("debevec/angular/grace_probe.hdr"))
+    from lightprobe.envmap import resample
+
+    write_image(path, resample(env, LATLONG, 64).data)
+    return path
+
+
+def test_the_command_writes_a_set_that_reads_back(tmp_path, capsys, small_probe):
+    from lightprobe.radiancefile import read_radiance_set
+
+    out = tmp_path / "maps"
+    code, text, err = _run(capsys, "radiance", small_probe, "--brdf", "ggx:alpha=0.3,conductor=gold", "--size", 32,
+                           "-o", out)
+    assert code == 0, err
+    rset = read_radiance_set(out)
+    views, faces = geodesic_views(12)
+    np.testing.assert_allclose(rset.views, views, atol=1e-9)
+    np.testing.assert_array_equal(rset.triangles, faces)
+    assert rset.brdf.spec() == "ggx:alpha=0.3,conductor=gold" and rset.size == 32 and len(rset.maps) == 12
+    manifest = __import__("json").loads((out / "manifest.json").read_text())
+    assert manifest["brdf"]["central"] == "mirror" and manifest["method"]["source_face_size"] >= 8
+    env = read_envmap(small_probe)
+    again = radiance_map(prepare(env), rset.brdf, rset.views[5], 32)
+    np.testing.assert_allclose(rset.maps[5].data, again.data, rtol=1e-3, atol=1e-6)  # EXR half-free float32
+    np.testing.assert_allclose(rset.frames[5], view_frame(rset.views[5]), atol=1e-9)
+    # again into the same folder: replaced whole, nothing left beside it
+    assert _run(capsys, "radiance", small_probe, "--brdf", "lambert", "--size", 16, "-o", out)[0] == 0
+    assert read_radiance_set(out).size == 16 and sorted(p.name for p in tmp_path.iterdir()) == ["maps"]
+
+
+def test_one_view_writes_the_map_and_its_frame(tmp_path, capsys, small_probe):
+    from lightprobe.radiancefile import read_radiance_set
+
+    out = tmp_path / "one.exr"
+    code, _, err = _run(capsys, "radiance", small_probe, "--brdf", "phong:n=30", "--view", "1,1,0", "--size", 24,
+                        "-o", out)
+    assert code == 0, err
+    rset = read_radiance_set(tmp_path / "one.json")
+    np.testing.assert_allclose(rset.views[0], [2 ** -0.5, 2 ** -0.5, 0], atol=1e-9)
+    assert rset.triangles is None and rset.maps[0].data.shape == (24, 24, 3)
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--brdf", "velvet"], "unknown BRDF"),
+    (["--brdf", "ggx:alpha=0"], "alpha must be in (0, 1]"),
+    (["--brdf", "ggx", "--views", "20"], "views must be 12, 42 or 162"),
+    (["--brdf", "ggx", "--view", "0,0,0"], "direction X,Y,Z"),
+    (["--brdf", "ggx", "--view", "0,0,1"], "the map's .exr"),
+    (["--brdf", "ggx", "--size", "0"], "--size"),
+])
+def test_bad_arguments_get_one_line_and_exit_2(tmp_path, capsys, small_probe, argv, message):
+    code, _, err = _run(capsys, "radiance", small_probe, *argv, "-o", tmp_path / "out")
+    assert code == 2 and len(err.strip().splitlines()) == 1 and message in err, err
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_folder_that_is_not_a_set_is_not_overwritten(tmp_path, capsys, small_probe):
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "notes.txt").write_text("mine")
+    code, _, err = _run(capsys, "radiance", small_probe, "--brdf", "lambert", "--size", 8, "-o", tmp_path / "out")
+    assert code == 2 and "not a radiance-map folder" in err
+    assert (tmp_path / "out" / "notes.txt").read_text() == "mine"
+
+
+def test_damaged_sets_are_refused_with_one_line(tmp_path, capsys, small_probe):
+    import json
+
+    from lightprobe.errors import InputError
+    from lightprobe.io import write_image
+    from lightprobe.radiancefile import read_radiance_set
+
+    out = tmp_path / "maps"
+    assert _run(capsys, "radiance", small_probe, "--brdf", "lambert", "--size", 8, "-o", out)[0] == 0
+    good = json.loads((out / "manifest.json").read_text())
+
+    def damaged(change):
+        doc = json.loads(json.dumps(good))
+        change(doc)
+        (out / "manifest.json").write_text(json.dumps(doc))
+        with pytest.raises(InputError) as e:
+            read_radiance_set(out)
+        assert "\n" not in str(e.value)
+        return str(e.value)
+
+    assert "is missing" in damaged(lambda d: d["views"][3].update(file="gone.exr"))
+    assert "file name in the folder" in damaged(lambda d: d["views"][3].update(file="../x.exr"))
+    assert "rotation" in damaged(lambda d: d["views"][0].update(frame=[[1, 0, 0], [0, 1, 0], [0, 0, 2]]))
+    assert "index triples" in damaged(lambda d: d.update(triangles=[[0, 1, 99]]))
+    assert "version" in damaged(lambda d: d.update(version=7))
+    assert "brdf" in damaged(lambda d: d["brdf"].update(spec="ggx:alpha=9"))
+    (out / "manifest.json").write_text(json.dumps(good))
+    write_image(out / "view_002.exr", np.ones((4, 4, 3), np.float32))
+    with pytest.raises(InputError, match="not 8×8"):
+        read_radiance_set(out)
+
+
+def test_the_manifest_reader_returns_a_set_or_one_clear_error(tmp_path_factory, small_probe):
+    """Hypothesis: bytes of a real manifest mutated or cut — read_radiance_set returns a set or raises one
+    one-line InputError, never anything else."""
+    import json
+
+    from hypothesis import HealthCheck, given, settings
+    from hypothesis import strategies as st
+
+    from lightprobe.cli import main
+    from lightprobe.errors import InputError
+    from lightprobe.radiancefile import read_radiance_set
+
+    out = tmp_path_factory.mktemp("fuzz") / "maps"
+    assert main(["radiance", str(small_probe), "--brdf", "lambert", "--size", "4", "-o", str(out)]) == 0
+    good = (out / "manifest.json").read_bytes()
+    assert json.loads(good)["views"]
+
+    @settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow,
+                                                                      HealthCheck.function_scoped_fixture])
+    @given(edits=st.lists(st.tuples(st.integers(0, 1 << 16), st.integers(32, 126)), min_size=0, max_size=6),
+           cut=st.integers(0, 2000))
+    def check(edits, cut):
+        text = bytearray(good)
+        for at, byte in edits:
+            text[at % len(text)] = byte
+        text = bytes(text[: max(1, len(text) - cut)]) if cut % 3 == 0 else bytes(text)
+        (out / "manifest.json").write_bytes(text)
+        try:
+            rset = read_radiance_set(out)
+        except InputError as e:
+            assert "\n" not in str(e)
+        else:
+            assert len(rset.maps) == len(rset.views) and np.isfinite(rset.frames).all()
+
+    check()

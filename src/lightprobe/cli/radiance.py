@@ -1,0 +1,97 @@
+"""``lightprobe radiance``: radiance environment maps for a BRDF at geodesic views, or one exact map for one view
+(Cabral, Olano & Nemec 1999; SPEC §4)."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from .common import Number, add_option, add_probe, load, refuse
+
+WORKING_BYTES_PER_PIXEL = 64  # the working cube's resampling of each input pixel
+
+
+def _direction(text: str):
+    import numpy as np
+
+    try:
+        v = np.array([float(x) for x in text.split(",")])
+    except ValueError:
+        v = np.zeros(0)
+    if v.shape != (3,) or not np.isfinite(v).all() or np.linalg.norm(v) < 1e-9:
+        raise argparse.ArgumentTypeError(f"wants a direction X,Y,Z (not all 0), got {text[:40]!r}")
+    return v / np.linalg.norm(v)
+
+
+def register(sub) -> None:
+    p = sub.add_parser("radiance", help="radiance environment maps of a BRDF (Cabral, Olano & Nemec 1999)",
+                       description="Compute sphere-layout radiance maps L_r(n; v) of an isotropic BRDF: one per "
+                                   "view of an icosahedron (12) or its geodesic subdivisions (42, 162) into a "
+                                   "folder with manifest.json (format lightprobe.radiance, version 1), or with "
+                                   "--view one exact map for one view (OUT.exr and OUT.json).")
+    add_probe(p)
+    p.add_argument("--brdf", required=True,
+                   help="name:key=value,… — lambert, phong:n=50, blinn:n=50, ggx:alpha=0.2,f0=0.04, "
+                        "ggx:alpha=0.2,conductor=gold (or eta=r/g/b,k=r/g/b, or ior=1.5), coat:alpha=0.1,ior=1.5,"
+                        "albedo=r/g/b")
+    add_option(p, "--views", type=Number(int, 1, 1000), default=12, help="number of views: 12, 42 or 162")
+    p.add_argument("--view", type=_direction, help="one view direction X,Y,Z (world frame, toward the eye): "
+                                                   "write one exact map to OUTPUT (.exr) and OUTPUT's .json")
+    add_option(p, "--size", type=Number(int, 2, 2048), default=256, help="texels across each map")
+    p.add_argument("--output", "-o", type=Path, required=True, help="the folder (or, with --view, the .exr)")
+    p.set_defaults(run=run)
+
+
+def run(args) -> None:
+    from ..brdf import parse_brdf
+    from ..files import check_output
+    from ..radiance import check_views, geodesic_views, prepare, radiance_map, view_frame
+    from ..radiancefile import RadianceSet, manifest, write_radiance_set
+    from ..progress import track
+
+    brdf = parse_brdf(args.brdf)
+    inputs = [args.file] if args.file else []
+    if args.view is None:
+        check_views(args.views)
+        if args.output.suffix:
+            refuse(f"--output {args.output} looks like a file: the maps go into a folder (or give --view)")
+    else:
+        if args.output.suffix.lower() != ".exr":
+            refuse("with --view, --output is the map's .exr file")
+        check_output(args.output, inputs)
+        check_output(args.output.with_suffix(".json"), inputs, text=True)
+    env = load(args.file, args.layout, working_bytes_per_pixel=WORKING_BYTES_PER_PIXEL, kernels=True)
+    t0 = time.perf_counter()
+    lighting = prepare(env)
+    timings = {"prepare": time.perf_counter() - t0}
+    if args.view is not None:
+        views, triangles = args.view[None, :], None
+    else:
+        views, triangles = geodesic_views(args.views)
+    t0 = time.perf_counter()
+    level = lighting.level_for(brdf, args.size * args.size)
+    maps = tuple(radiance_map(lighting, brdf, v, args.size) for v in track(list(views), "radiance maps"))
+    timings["maps"] = time.perf_counter() - t0
+    import numpy as np
+
+    face = lighting.levels[level].grid[-1]
+    method = {"how": "exact sums over a box-filtered level of the working cube, the brightest texels as point "
+                     "sources", "working_size": lighting.levels[0].grid[-1], "source_level": level,
+              "source_face_size": face, "peaks": int(len(lighting.peak_directions))}
+    rset = RadianceSet(brdf, views, np.array([view_frame(v) for v in views]), maps, triangles, method)
+    source = str(args.file) if args.file else "(shipped probe)"
+    if args.view is None:
+        write_radiance_set(args.output, rset, timings, source)
+        print(f"{len(maps)} radiance maps {args.size}² of {brdf.spec()} in {args.output} "
+              f"({timings['maps']:.1f} s; source level {face}² faces)")
+        return
+    import json
+
+    from ..files import write_text
+
+    maps[0].save(args.output, inputs=inputs)
+    doc = manifest(rset, [args.output.name], timings, source)
+    write_text(args.output.with_suffix(".json"), json.dumps(doc, indent=1, allow_nan=False) + "\n", inputs)
+    print(f"radiance map {args.size}² of {brdf.spec()} for view {', '.join(f'{x:.4f}' for x in args.view)}: "
+          f"{args.output} (frame in {args.output.with_suffix('.json').name})")

@@ -1,0 +1,171 @@
+"""Radiance-map sets on disk: a folder of sphere-layout EXRs, one per view, and its ``manifest.json``.
+
+Schema ``{"format": "lightprobe.radiance", "version": 1, ...}``:
+
+* ``frame``: ``world`` (SPEC §1) — every direction and frame below is in it;
+* ``quantity``: ``radiance`` — each texel is L_r(n; v), the radiance the BRDF sends toward the view v from a
+  surface of normal n = T·n_local, n_local the texel's local normal (x, y, √(1 − x² − y²)) (SPEC §4);
+* ``layout``: ``sphere``, ``size`` (texels across);
+* ``brdf``: ``spec`` (what :func:`lightprobe.brdf.parse_brdf` reads back), ``name``, ``central`` (``normal`` or
+  ``mirror``: the warp RS-IBR uses) and its parameters;
+* ``views``: each ``file`` (relative to the folder), ``direction`` (v, unit), ``up`` and ``frame`` (T as three
+  columns: right, up, v, as rows of [[right], [up], [v]]);
+* ``triangles``: the view mesh (indices into ``views``, counter-clockwise seen from outside) — absent for one view;
+* ``method``: how the maps were computed (the source level of the working cube, the peaks) and ``timings``.
+
+A set is written to a temporary folder beside the target and renamed into place, so an interrupted run leaves
+the previous set (or nothing), never a half set. A single map (``--view``) is an EXR with the same manifest, one
+view and no triangles, in ``OUT.json`` beside it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .brdf import BRDF, parse_brdf
+from .envmap import EnvMap
+from .errors import InputError, UsageError
+from .layouts import Sphere
+from .shfile import versioned_document
+
+FORMAT, VERSION = "lightprobe.radiance", 1
+MAX_BYTES = 1 << 20
+MAX_VIEWS = 162
+
+
+@dataclass(frozen=True, eq=False)
+class RadianceSet:
+    """Radiance maps of one BRDF at view directions (world frame): ``maps[i]`` is for ``views[i]`` and has layout
+    Sphere(``frames[i]``); ``triangles`` index the view mesh (None for a single view)."""
+
+    brdf: BRDF
+    views: np.ndarray  # (N, 3) unit
+    frames: np.ndarray  # (N, 3, 3): columns right, up, v
+    maps: tuple[EnvMap, ...]
+    triangles: np.ndarray | None
+    method: dict
+
+    @property
+    def size(self) -> int:
+        return self.maps[0].data.shape[0]
+
+
+def manifest(rset: RadianceSet, files: list[str], timings: dict | None = None, source: str | None = None) -> dict:
+    """The schema's object for a set whose maps are (to be) written as ``files``."""
+    views = [{"file": f, "direction": [float(x) for x in v], "up": [float(x) for x in t[:, 1]],
+              "frame": [[float(x) for x in t[:, k]] for k in range(3)]}
+             for f, v, t in zip(files, rset.views, rset.frames)]
+    doc = {"format": FORMAT, "version": VERSION, "frame": "world", "quantity": "radiance", "layout": "sphere",
+           "size": rset.size, "brdf": {"spec": rset.brdf.spec(), **rset.brdf.describe()}, "views": views,
+           "method": rset.method, "timings": timings or {}, "source": source}
+    if rset.triangles is not None:
+        doc["triangles"] = [[int(i) for i in tri] for tri in rset.triangles]
+    return doc
+
+
+def write_radiance_set(folder: str | os.PathLike, rset: RadianceSet, timings: dict | None = None,
+                       source: str | None = None) -> Path:
+    """Write the set as ``folder`` (EXRs ``view_000.exr`` … and ``manifest.json``), atomically: into a temporary
+    folder beside it, renamed into place once complete (an existing set there is replaced; any other non-empty
+    folder is refused)."""
+    folder = Path(folder)
+    if folder.exists() and (not folder.is_dir() or (any(folder.iterdir()) and not (folder / "manifest.json").is_file())):
+        raise UsageError(f"{folder} exists and is not a radiance-map folder: give a new or empty folder")
+    temp = folder.parent / f".{folder.name}.tmp-{os.getpid()}"
+    old = folder.parent / f".{folder.name}.old-{os.getpid()}"
+    shutil.rmtree(temp, ignore_errors=True)
+    temp.mkdir(parents=True)
+    try:
+        files = [f"view_{i:03d}.exr" for i in range(len(rset.maps))]
+        for name, rmap in zip(files, rset.maps):
+            rmap.save(temp / name)
+        text = json.dumps(manifest(rset, files, timings, source), indent=1, allow_nan=False) + "\n"
+        (temp / "manifest.json").write_text(text)
+        if folder.exists():
+            folder.rename(old)
+        temp.rename(folder)
+    except BaseException:
+        shutil.rmtree(temp, ignore_errors=True)
+        if old.exists() and not folder.exists():
+            old.rename(folder)
+        raise
+    shutil.rmtree(old, ignore_errors=True)
+    return folder
+
+
+def read_radiance_set(folder: str | os.PathLike) -> RadianceSet:
+    """A set written by :func:`write_radiance_set` (or one map's ``OUT.json`` path), every field checked: a missing
+    or wrong-sized map, a frame that is not a rotation with v as its third column, or a bad triangle is one clear
+    :class:`~lightprobe.errors.InputError`."""
+    from .io import read_image
+
+    path = Path(folder)
+    manifest_path = path / "manifest.json" if path.is_dir() else path
+    what = f"radiance-map manifest {manifest_path}"
+    if not manifest_path.is_file():
+        raise InputError(f"cannot read {what}: no such file")
+    doc, fail = versioned_document(manifest_path.read_bytes(), what, FORMAT, VERSION, MAX_BYTES)
+    if doc.get("frame") != "world" or doc.get("quantity") != "radiance" or doc.get("layout") != "sphere":
+        fail("frame, quantity and layout must be world, radiance and sphere")
+    size = doc.get("size")
+    if not isinstance(size, int) or not 2 <= size <= 4096:
+        fail("size must be a whole number from 2 to 4096")
+    brdf_doc = doc.get("brdf")
+    if not isinstance(brdf_doc, dict) or not isinstance(brdf_doc.get("spec"), str):
+        fail("brdf.spec is missing")
+    try:
+        brdf = parse_brdf(brdf_doc["spec"])
+    except UsageError as e:
+        fail(f"brdf: {e}")
+    views_doc = doc.get("views")
+    if not isinstance(views_doc, list) or not 1 <= len(views_doc) <= MAX_VIEWS:
+        fail(f"views must be a list of 1 to {MAX_VIEWS}")
+    views, frames, maps = [], [], []
+    for i, view in enumerate(views_doc):
+        direction, frame = _view_fields(view, i, fail)
+        name = view["file"]
+        if not isinstance(name, str) or "/" in name or "\\" in name or name.startswith("."):
+            fail(f"views[{i}].file must be a file name in the folder")
+        map_path = manifest_path.parent / name
+        if not map_path.is_file():
+            fail(f"views[{i}]: the map {name} is missing")
+        data = read_image(map_path)[..., :3]
+        if data.shape[:2] != (size, size):
+            fail(f"views[{i}]: the map {name} is {data.shape[1]}×{data.shape[0]}, not {size}×{size}")
+        views.append(direction)
+        frames.append(frame)
+        maps.append(EnvMap(np.ascontiguousarray(data, dtype=np.float32), Sphere(frame)))
+    triangles = doc.get("triangles")
+    if triangles is not None:
+        try:
+            tri = np.asarray(triangles) if isinstance(triangles, list) else np.zeros((0,))
+        except ValueError:  # ragged lists
+            tri = np.zeros((0,))
+        if tri.ndim != 2 or tri.shape[1] != 3 or not np.issubdtype(tri.dtype, np.integer) or \
+                (tri < 0).any() or (tri >= len(views)).any():
+            fail("triangles must be index triples into views")
+        triangles = tri.astype(np.int64)
+    method = doc.get("method") if isinstance(doc.get("method"), dict) else {}
+    return RadianceSet(brdf, np.array(views), np.array(frames), tuple(maps), triangles, method)
+
+
+def _view_fields(view, i: int, fail) -> tuple[np.ndarray, np.ndarray]:
+    if not isinstance(view, dict) or not {"file", "direction", "frame"} <= set(view):
+        fail(f"views[{i}] needs file, direction and frame")
+    try:
+        direction = np.asarray(view["direction"], dtype=np.float64)
+        frame = np.asarray(view["frame"], dtype=np.float64).T  # stored as rows [right], [up], [v]
+    except (TypeError, ValueError):
+        fail(f"views[{i}]: direction and frame must be numbers")
+    if direction.shape != (3,) or frame.shape != (3, 3) or not np.isfinite(frame).all():
+        fail(f"views[{i}]: direction must be 3 numbers and frame 3×3")
+    if not np.allclose(frame.T @ frame, np.eye(3), atol=1e-6) or np.linalg.det(frame) < 0 or \
+            not np.allclose(frame[:, 2], direction, atol=1e-6):
+        fail(f"views[{i}]: frame must be a rotation whose third column is the direction")
+    return direction / np.linalg.norm(direction), frame
