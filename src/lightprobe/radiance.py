@@ -130,12 +130,14 @@ def radiance_map(lighting: Lighting | EnvMap, brdf: BRDF, view: np.ndarray, size
 
 
 def sphere_normals(size: int) -> np.ndarray:
-    """Local normals n = (x, y, √(1 − x² − y²)) at the texel centres of a ``size``² sphere map (x right, y up;
-    clamped onto the disc's rim outside it), (size, size, 3)."""
+    """Local normals n = (x, y, √(1 − x² − y²)) at the texel centres of a ``size``² sphere map (x right, y up),
+    (size, size, 3). Centres beyond 1 − ½ texel of the centre are pulled in to that radius: on the rim itself n ⊥ v,
+    where every BRDF is 0 (the view is at the surface's horizon), which would ring the map with black texels."""
     c = (np.arange(size) + 0.5) / size
     x, y = np.meshgrid(2 * c - 1, 1 - 2 * c)
     r = np.sqrt(x * x + y * y)
-    scale = np.where(r > 1, 1 / np.maximum(r, 1e-300), 1.0)
+    limit = 1 - 1 / size
+    scale = np.where(r > limit, limit / np.maximum(r, 1e-300), 1.0)
     x, y = x * scale, y * scale
     return np.stack([x, y, np.sqrt(np.clip(1 - x * x - y * y, 0.0, None))], axis=-1)
 

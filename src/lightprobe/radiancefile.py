@@ -168,4 +168,6 @@ def _view_fields(view, i: int, fail) -> tuple[np.ndarray, np.ndarray]:
     if not np.allclose(frame.T @ frame, np.eye(3), atol=1e-6) or np.linalg.det(frame) < 0 or \
             not np.allclose(frame[:, 2], direction, atol=1e-6):
         fail(f"views[{i}]: frame must be a rotation whose third column is the direction")
-    return direction / np.linalg.norm(direction), frame
+    u, _, vt = np.linalg.svd(frame)  # the nearest rotation: JSON's decimals leave it orthonormal to ~1e-16 only
+    frame = u @ vt
+    return frame[:, 2].copy(), frame

@@ -29,21 +29,72 @@ def register(sub) -> None:
                        description="Compute sphere-layout radiance maps L_r(n; v) of an isotropic BRDF: one per "
                                    "view of an icosahedron (12) or its geodesic subdivisions (42, 162) into a "
                                    "folder with manifest.json (format lightprobe.radiance, version 1), or with "
-                                   "--view one exact map for one view (OUT.exr and OUT.json).")
-    add_probe(p)
-    p.add_argument("--brdf", required=True,
+                                   "--view one exact map for one view (OUT.exr and OUT.json); or, with "
+                                   "--synthesize, the map of a new view blended from a folder of maps "
+                                   "(reflection-space IBR).")
+    add_probe(p, help_text="HDR environment map (omitted: the shipped probe); with --synthesize, the folder of "
+                           "radiance maps")
+    p.add_argument("--brdf",
                    help="name:key=value,… — lambert, phong:n=50, blinn:n=50, ggx:alpha=0.2,f0=0.04, "
                         "ggx:alpha=0.2,conductor=gold (or eta=r/g/b,k=r/g/b, or ior=1.5), coat:alpha=0.1,ior=1.5,"
                         "albedo=r/g/b")
     add_option(p, "--views", type=Number(int, 1, 1000), default=12, help="number of views: 12, 42 or 162")
     p.add_argument("--view", type=_direction, help="one view direction X,Y,Z (world frame, toward the eye): "
                                                    "write one exact map to OUTPUT (.exr) and OUTPUT's .json")
+    p.add_argument("--synthesize", type=_direction, metavar="X,Y,Z",
+                   help="a new view direction: blend its map from the folder FILE's three maps around it, write "
+                        "OUTPUT (.exr) and OUTPUT's .json")
+    p.add_argument("--warp", choices=("normal", "mirror"),
+                   help="with --synthesize: the warp (default: the BRDF's central direction, in the manifest)")
     add_option(p, "--size", type=Number(int, 2, 2048), default=256, help="texels across each map")
     p.add_argument("--output", "-o", type=Path, required=True, help="the folder (or, with --view, the .exr)")
     p.set_defaults(run=run)
 
 
 def run(args) -> None:
+    if args.synthesize is not None:
+        _synthesize(args)
+        return
+    if args.brdf is None:
+        refuse("--brdf is needed (e.g. --brdf ggx:alpha=0.2), unless --synthesize reads a folder of maps")
+    _bake(args)
+
+
+def _synthesize(args) -> None:
+    import json
+
+    from ..files import check_output, write_text
+    from ..radiance import view_frame
+    from ..radiancefile import RadianceSet, manifest, read_radiance_set
+    from ..rsibr import blend_weights, synthesize
+
+    if args.file is None or not args.file.is_dir():
+        refuse("--synthesize reads a folder of radiance maps (lightprobe radiance … -o FOLDER): give it as FILE")
+    if args.brdf is not None or args.view is not None:
+        refuse("--synthesize takes the BRDF and the views from the folder's manifest: no --brdf or --view")
+    if args.output.suffix.lower() != ".exr":
+        refuse("with --synthesize, --output is the map's .exr file")
+    check_output(args.output)
+    check_output(args.output.with_suffix(".json"), text=True)
+    rset = read_radiance_set(args.file)
+    if rset.triangles is None:
+        refuse(f"{args.file} holds one view: synthesis needs a set (--views 12, 42 or 162)")
+    t0 = time.perf_counter()
+    out = synthesize(rset, args.synthesize, args.warp)
+    seconds = time.perf_counter() - t0
+    sources, weights = blend_weights(rset.views, rset.triangles, args.synthesize)
+    method = {"how": "reflection-space IBR", "warp": args.warp or rset.brdf.central,
+              "sources": [int(i) for i in sources], "weights": [float(w) for w in weights], "set": str(args.file)}
+    one = RadianceSet(rset.brdf, args.synthesize[None, :], view_frame(args.synthesize)[None], (out,), None, method)
+    out.save(args.output)
+    write_text(args.output.with_suffix(".json"),
+               json.dumps(manifest(one, [args.output.name], {"synthesis": seconds}), indent=1, allow_nan=False) + "\n")
+    print(f"synthesised {rset.size}² map for view {', '.join(f'{x:.4f}' for x in args.synthesize)} from views "
+          f"{', '.join(str(int(i)) for i in sources)} (weights {', '.join(f'{w:.3f}' for w in weights)}): "
+          f"{args.output}")
+
+
+def _bake(args) -> None:
     from ..brdf import parse_brdf
     from ..files import check_output
     from ..radiance import check_views, geodesic_views, prepare, radiance_map, view_frame

@@ -1,0 +1,206 @@
+"""Reflection-space image-based rendering (Cabral, Olano & Nemec 1999; SPEC §4): the radiance map of any view,
+synthesised from the precomputed maps of the three views around it.
+
+For a new view v_d: the spherical triangle of the view mesh that contains v_d gives three source maps and their
+spherical barycentric weights (areas by the Van Oosterom–Strackee formula: ≥ 0, sum 1, a source view's own weight
+1). Each destination texel p_d is warped into each source through the BRDF's *central direction* c — the normal
+for diffuse-like BRDFs, the mirror direction for specular-like ones: c_world = T_d g_c(p_d), read at
+p_s = g_c⁻¹(T_sᵀ c_world), bilinearly. Near a source map's rim the warp degrades (the mirror warp is singular at
+c = −v_s, the rim; the normal warp runs out of normals facing v_s), so each source's value is faded by a confidence
+that falls smoothly to 0 there, and the weights are renormalised.
+
+Quantities: radiance, as the source maps (:mod:`lightprobe.radiance`); frames: world; the synthesised map is a
+``sphere``-layout :class:`~lightprobe.envmap.EnvMap` in the frame :func:`lightprobe.radiance.view_frame` gives v_d,
+like the source maps, so it can be compared with the map computed directly for v_d.
+"""
+
+from __future__ import annotations
+
+import math
+import weakref
+from functools import lru_cache
+
+import numpy as np
+
+from .envmap import EnvMap
+from .jit import njit, prange
+from .errors import UsageError
+from .layouts import Sphere
+from .radiance import sphere_normals, view_frame
+from .radiancefile import RadianceSet
+
+FADE_START, FADE_END = 0.1, 0.35  # mirror warp: confidence 0 below this z of the source texel's normal, 1 above
+NORMAL_FADE = 0.1  # normal warp: confidence rises from 0 at the source's rim (z = 0) to 1 at this z
+
+
+# ---- warps: texel (x, y) on the sphere map's disc ↔ local direction -------------------------------------------
+def g_normal(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """The local normal of the sphere-map point (x, y) (x right, y up, in [−1, 1]): (x, y, √(1 − x² − y²))."""
+    return np.stack([x, y, np.sqrt(np.clip(1 - x * x - y * y, 0.0, None))], axis=-1)
+
+
+def g_normal_inverse(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The texture coordinates (s, t) in [0, 1] of local normal n: (n_x/2 + ½, n_y/2 + ½) (t up)."""
+    return n[..., 0] / 2 + 0.5, n[..., 1] / 2 + 0.5
+
+
+def g_mirror(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """The local mirror direction of the sphere-map point (x, y): (2xz, 2yz, 2z² − 1), z = √(1 − x² − y²)."""
+    z = np.sqrt(np.clip(1 - x * x - y * y, 0.0, None))
+    return np.stack([2 * x * z, 2 * y * z, 2 * z * z - 1], axis=-1)
+
+
+def g_mirror_inverse(r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The texture coordinates of local mirror direction r: g_normal⁻¹((r_x, r_y, r_z + 1) / |…|)."""
+    h = r + np.array([0.0, 0.0, 1.0])
+    return g_normal_inverse(h / np.maximum(np.linalg.norm(h, axis=-1, keepdims=True), 1e-300))
+
+
+# ---- blending -----------------------------------------------------------------------------------------------------
+def _excess(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> float:
+    """Area (spherical excess) of the triangle of unit vectors a, b, c: tan(E/2) = |a·(b×c)| / (1 + a·b + b·c + c·a)
+    (Van Oosterom & Strackee 1983)."""
+    triple = abs(float(a @ np.cross(b, c)))
+    return 2 * float(np.arctan2(triple, 1 + a @ b + b @ c + c @ a))
+
+
+def containing_triangle(views: np.ndarray, triangles: np.ndarray, v: np.ndarray) -> int:
+    """The index of the view-mesh triangle containing unit v: all three triple products [v_i, v_{i+1}, v] ≥ 0 (the
+    one with the largest smallest product, so a v on an edge or a vertex picks one deterministically)."""
+    a, b, c = views[triangles[:, 0]], views[triangles[:, 1]], views[triangles[:, 2]]
+    products = np.stack([np.cross(a, b) @ v, np.cross(b, c) @ v, np.cross(c, a) @ v], axis=1)
+    return int(np.argmax(products.min(axis=1)))
+
+
+def blend_weights(views: np.ndarray, triangles: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The three source views (indices) around unit v and their spherical barycentric weights: vertex i weighs the
+    area of the triangle v makes with the other two, over the whole triangle's. ≥ 0, summing to 1."""
+    tri = triangles[containing_triangle(views, triangles, v)]
+    a, b, c = views[tri]
+    whole = _excess(a, b, c)
+    weights = np.array([_excess(v, b, c), _excess(a, v, c), _excess(a, b, v)]) / whole
+    return tri, weights / weights.sum()
+
+
+def synthesize(rset: RadianceSet, view: np.ndarray, warp: str | None = None, size: int | None = None) -> EnvMap:
+    """The radiance map for unit ``view`` (world, toward the eye) blended from ``rset``'s three maps around it,
+    warped through ``warp`` (``normal`` or ``mirror``; default the BRDF's central direction). A view equal to a
+    source view returns that source map (a copy)."""
+    if rset.triangles is None:
+        raise UsageError("synthesis needs a set of views with its triangles (lightprobe radiance --views N)")
+    warp = warp or rset.brdf.central
+    if warp not in ("normal", "mirror"):
+        raise UsageError(f"warp must be normal or mirror, got {warp!r}")
+    view = np.asarray(view, dtype=np.float64)
+    view = view / np.linalg.norm(view)
+    size = size or rset.size
+    frame = view_frame(view)
+    sources, weights = blend_weights(rset.views, rset.triangles, view)
+    if weights.max() >= 1 - 1e-12 and size == rset.size:
+        only = sources[int(np.argmax(weights))]
+        if np.allclose(rset.frames[only], frame, atol=1e-12):
+            return EnvMap(rset.maps[only].data.copy(), Sphere(frame))
+    local, inside = _destination(size, warp)
+    out = np.empty((len(local), 3))
+    _blend(local, frame, _stacked(rset), sources.astype(np.int64), np.ascontiguousarray(rset.frames), weights,
+           warp == "mirror", _valid(rset.size), FADE_START, FADE_END, NORMAL_FADE, out)
+    data = np.zeros((size, size, 3), np.float32)
+    data[inside] = out
+    return EnvMap(data, Sphere(frame))
+
+
+@lru_cache(maxsize=8)
+def _destination(size: int, warp: str) -> tuple[np.ndarray, np.ndarray]:
+    """The local central directions g_c (P, 3) of a ``size``² map's texels on its disc, and which texels those
+    are."""
+    inside = Sphere().valid_mask((size, size))
+    local = sphere_normals(size)[inside]
+    if warp == "mirror":
+        local = g_mirror(local[:, 0], local[:, 1])
+    local = np.ascontiguousarray(local)
+    for a in (inside, local):
+        a.setflags(write=False)
+    return local, inside
+
+
+_STACKS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _stacked(rset: RadianceSet) -> np.ndarray:
+    """All the set's maps as one (N, H, W, 3) array for the kernel, made once per set."""
+    if rset not in _STACKS:
+        _STACKS[rset] = np.ascontiguousarray(np.stack([m.data for m in rset.maps]), dtype=np.float32)
+    return _STACKS[rset]
+
+
+@lru_cache(maxsize=8)
+def _valid(size: int) -> np.ndarray:
+    out = Sphere().valid_mask((size, size)).astype(np.float64)
+    out.setflags(write=False)
+    return out
+
+
+@njit(cache=True, inline="always")
+def _smooth(x, lo, hi):  # pragma: no cover - compiled
+    t = min(max((x - lo) / (hi - lo), 0.0), 1.0)
+    return t * t * (3 - 2 * t)
+
+
+@njit(cache=True, parallel=True)
+def _blend(local, frame, maps, sources, frames, weights, mirror, valid, fade_start, fade_end, normal_fade,
+           out):  # pragma: no cover - compiled
+    """For each destination texel's central direction c = T_d g_c (world; ``local`` holds g_c, ``frame`` T_d): in
+    each source k (of ``sources``, into maps and frames), c_local = T_kᵀ c, the texel
+    p_k = g⁻¹(c_local) (normal or mirror warp), its value read bilinearly (texels off the disc left out), faded by
+    the confidence of z of p_k's local normal; the weighted values renormalised — or, where no source is
+    confident, the value of the source whose disc comes closest (the largest z)."""
+    h, w = valid.shape
+    for p in prange(local.shape[0]):
+        total0 = total1 = total2 = weight_sum = 0.0
+        best_z, f0, f1, f2 = -1e300, 0.0, 0.0, 0.0
+        g0 = frame[0, 0] * local[p, 0] + frame[0, 1] * local[p, 1] + frame[0, 2] * local[p, 2]
+        g1 = frame[1, 0] * local[p, 0] + frame[1, 1] * local[p, 1] + frame[1, 2] * local[p, 2]
+        g2 = frame[2, 0] * local[p, 0] + frame[2, 1] * local[p, 1] + frame[2, 2] * local[p, 2]
+        for j in range(sources.shape[0]):
+            k = sources[j]
+            c0 = g0 * frames[k, 0, 0] + g1 * frames[k, 1, 0] + g2 * frames[k, 2, 0]
+            c1 = g0 * frames[k, 0, 1] + g1 * frames[k, 1, 1] + g2 * frames[k, 2, 1]
+            c2 = g0 * frames[k, 0, 2] + g1 * frames[k, 1, 2] + g2 * frames[k, 2, 2]
+            if mirror:  # g_mirror⁻¹: the normal halfway between c and the view (+z)
+                norm = math.sqrt(c0 * c0 + c1 * c1 + (c2 + 1) * (c2 + 1))
+                if norm < 1e-300:
+                    n0, n1, z = 1.0, 0.0, 0.0
+                else:
+                    n0, n1, z = c0 / norm, c1 / norm, (c2 + 1) / norm
+                confidence = _smooth(z, fade_start, fade_end)
+            else:
+                n0, n1, z = c0, c1, c2
+                confidence = _smooth(z, 0.0, normal_fade)
+            x, y = (n0 / 2 + 0.5) * w - 0.5, (0.5 - n1 / 2) * h - 0.5
+            x0, y0 = int(math.floor(x)), int(math.floor(y))
+            fx, fy = x - x0, y - y0
+            v0 = v1 = v2 = vw = 0.0
+            for dy in range(2):
+                for dx in range(2):
+                    xi, yi = x0 + dx, y0 + dy
+                    if 0 <= xi < w and 0 <= yi < h and valid[yi, xi] > 0:
+                        tap = (fx if dx else 1 - fx) * (fy if dy else 1 - fy)
+                        v0 += tap * maps[k, yi, xi, 0]
+                        v1 += tap * maps[k, yi, xi, 1]
+                        v2 += tap * maps[k, yi, xi, 2]
+                        vw += tap
+            if vw > 0:
+                v0, v1, v2 = v0 / vw, v1 / vw, v2 / vw
+            c = weights[j] * confidence
+            total0 += c * v0
+            total1 += c * v1
+            total2 += c * v2
+            weight_sum += c
+            if z > best_z:
+                best_z, f0, f1, f2 = z, v0, v1, v2
+        if weight_sum > 1e-6:
+            out[p, 0], out[p, 1], out[p, 2] = total0 / weight_sum, total1 / weight_sum, total2 / weight_sum
+        else:
+            out[p, 0], out[p, 1], out[p, 2] = f0, f1, f2
+
+
