@@ -104,7 +104,7 @@ def test_the_command_lines_names_are_the_implementations_tables():
     assert names.FRAMES == tuple(frames.FRAMES)
     assert names.WINDOWS == sh.WINDOWS and names.CURVES == tonemap.CURVES
     assert names.EXPORT_TARGETS == export.TARGETS == tuple(export.DEFAULT_FRAMES)
-    assert names.RENDER_METHODS == tuple(methods.METHODS)
+    assert names.RENDER_METHODS == tuple(methods.all_methods())
 
 
 def test_help_loads_no_numpy():

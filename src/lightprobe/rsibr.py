@@ -102,11 +102,91 @@ def synthesize(rset: RadianceSet, view: np.ndarray, warp: str | None = None, siz
             return EnvMap(rset.maps[only].data.copy(), Sphere(frame))
     local, inside = _destination(size, warp)
     out = np.empty((len(local), 3))
-    _blend(local, frame, _stacked(rset), sources.astype(np.int64), np.ascontiguousarray(rset.frames), weights,
-           warp == "mirror", _valid(rset.size), FADE_START, FADE_END, NORMAL_FADE, out)
+    every = np.ones((len(local), 1))
+    _blend(local, frame, _stacked(rset), (every * sources).astype(np.int64), np.ascontiguousarray(rset.frames),
+           every * weights, warp == "mirror", _valid(rset.size), FADE_START, FADE_END, NORMAL_FADE, out)
     data = np.zeros((size, size, 3), np.float32)
     data[inside] = out
     return EnvMap(data, Sphere(frame))
+
+
+def blend_weights_many(views: np.ndarray, triangles: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`blend_weights` for many unit views (P, 3) at once: source indices (P, 3) and weights (P, 3)."""
+    a, b, c = views[triangles[:, 0]], views[triangles[:, 1]], views[triangles[:, 2]]
+    products = np.minimum(np.minimum(v @ np.cross(a, b).T, v @ np.cross(b, c).T), v @ np.cross(c, a).T)
+    tri = triangles[np.argmax(products, axis=1)]
+    va, vb, vc = views[tri[:, 0]], views[tri[:, 1]], views[tri[:, 2]]
+
+    def excess(x, y, z):
+        triple = np.abs(np.einsum("ij,ij->i", x, np.cross(y, z)))
+        return 2 * np.arctan2(triple, 1 + np.einsum("ij,ij->i", x, y) + np.einsum("ij,ij->i", y, z)
+                              + np.einsum("ij,ij->i", z, x))
+
+    weights = np.stack([excess(v, vb, vc), excess(va, v, vc), excess(va, vb, v)], axis=1)
+    return tri, weights / np.maximum(weights.sum(axis=1, keepdims=True), 1e-300)
+
+
+def reflected_by_view(rset: RadianceSet, normals: np.ndarray, views: np.ndarray, warp: str | None = None
+                      ) -> np.ndarray:
+    """RS-IBR per point (beyond the paper's one map per frame): each point's reflected radiance (N, 3) for its own
+    unit ``views`` (N, 3), blended from the three source maps around that view, through the warp's central
+    direction of its normal (the normal, or the mirror of its view). Radiance, world frame."""
+    if rset.triangles is None:
+        raise UsageError("RS-IBR needs a set of views with its triangles")
+    warp = warp or rset.brdf.central
+    normals = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+    views = np.broadcast_to(np.asarray(views, dtype=np.float64), normals.shape)
+    central = normals if warp == "normal" else 2 * np.sum(normals * views, axis=1, keepdims=True) * normals - views
+    sources, weights = blend_weights_many(rset.views, rset.triangles, views)
+    out = np.empty((len(normals), 3))
+    _blend(np.ascontiguousarray(central), np.eye(3), _stacked(rset), np.ascontiguousarray(sources, dtype=np.int64),
+           np.ascontiguousarray(rset.frames), np.ascontiguousarray(weights), warp == "mirror", _valid(rset.size),
+           FADE_START, FADE_END, NORMAL_FADE, out)
+    return out
+
+
+def map_at_normals(rmap: EnvMap, normals: np.ndarray) -> np.ndarray:
+    """A radiance map read at world ``normals`` (N, 3): the texel of local normal Tᵀ n (SPEC §4's normal-indexed
+    lookup; normals facing away from the map's view are read at its rim), bilinear. Radiance."""
+    local = np.asarray(normals, dtype=np.float64).reshape(-1, 3) @ rmap.layout.camera_axes
+    out = np.empty((len(local), 3))
+    size = rmap.data.shape[0]
+    _read_normals(np.ascontiguousarray(local), np.ascontiguousarray(rmap.data[None], dtype=np.float32), _valid(size),
+                  out)
+    return out
+
+
+@njit(cache=True, inline="always")
+def _fetch(maps, k, valid, n0, n1):  # pragma: no cover - compiled
+    """Bilinear read (RGB) of sphere image ``maps[k]`` at the texel of local normal (n0, n1, ·), texels off the
+    disc left out."""
+    h, w = valid.shape
+    x, y = (n0 / 2 + 0.5) * w - 0.5, (0.5 - n1 / 2) * h - 0.5
+    x0, y0 = int(math.floor(x)), int(math.floor(y))
+    fx, fy = x - x0, y - y0
+    v0 = v1 = v2 = vw = 0.0
+    for dy in range(2):
+        for dx in range(2):
+            xi, yi = x0 + dx, y0 + dy
+            if 0 <= xi < w and 0 <= yi < h and valid[yi, xi] > 0:
+                tap = (fx if dx else 1 - fx) * (fy if dy else 1 - fy)
+                v0 += tap * maps[k, yi, xi, 0]
+                v1 += tap * maps[k, yi, xi, 1]
+                v2 += tap * maps[k, yi, xi, 2]
+                vw += tap
+    if vw > 0:
+        return v0 / vw, v1 / vw, v2 / vw
+    return v0, v1, v2
+
+
+@njit(cache=True, parallel=True)
+def _read_normals(local, maps, valid, out):  # pragma: no cover - compiled
+    for p in prange(local.shape[0]):
+        x, y, z = local[p, 0], local[p, 1], local[p, 2]
+        r = math.sqrt(x * x + y * y)
+        if z < 0 and r > 0:  # facing away from the map's view: the rim in that direction
+            x, y = x / r, y / r
+        out[p, 0], out[p, 1], out[p, 2] = _fetch(maps, 0, valid, x, y)
 
 
 @lru_cache(maxsize=8)
@@ -149,20 +229,19 @@ def _smooth(x, lo, hi):  # pragma: no cover - compiled
 @njit(cache=True, parallel=True)
 def _blend(local, frame, maps, sources, frames, weights, mirror, valid, fade_start, fade_end, normal_fade,
            out):  # pragma: no cover - compiled
-    """For each destination texel's central direction c = T_d g_c (world; ``local`` holds g_c, ``frame`` T_d): in
-    each source k (of ``sources``, into maps and frames), c_local = T_kᵀ c, the texel
+    """For each point's central direction c = T g (world; ``local`` holds g, ``frame`` T): in each of its three
+    sources k (row p of ``sources`` and ``weights``), c_local = T_kᵀ c, the texel
     p_k = g⁻¹(c_local) (normal or mirror warp), its value read bilinearly (texels off the disc left out), faded by
     the confidence of z of p_k's local normal; the weighted values renormalised — or, where no source is
     confident, the value of the source whose disc comes closest (the largest z)."""
-    h, w = valid.shape
     for p in prange(local.shape[0]):
         total0 = total1 = total2 = weight_sum = 0.0
         best_z, f0, f1, f2 = -1e300, 0.0, 0.0, 0.0
         g0 = frame[0, 0] * local[p, 0] + frame[0, 1] * local[p, 1] + frame[0, 2] * local[p, 2]
         g1 = frame[1, 0] * local[p, 0] + frame[1, 1] * local[p, 1] + frame[1, 2] * local[p, 2]
         g2 = frame[2, 0] * local[p, 0] + frame[2, 1] * local[p, 1] + frame[2, 2] * local[p, 2]
-        for j in range(sources.shape[0]):
-            k = sources[j]
+        for j in range(3):
+            k = sources[p, j]
             c0 = g0 * frames[k, 0, 0] + g1 * frames[k, 1, 0] + g2 * frames[k, 2, 0]
             c1 = g0 * frames[k, 0, 1] + g1 * frames[k, 1, 1] + g2 * frames[k, 2, 1]
             c2 = g0 * frames[k, 0, 2] + g1 * frames[k, 1, 2] + g2 * frames[k, 2, 2]
@@ -176,22 +255,8 @@ def _blend(local, frame, maps, sources, frames, weights, mirror, valid, fade_sta
             else:
                 n0, n1, z = c0, c1, c2
                 confidence = _smooth(z, 0.0, normal_fade)
-            x, y = (n0 / 2 + 0.5) * w - 0.5, (0.5 - n1 / 2) * h - 0.5
-            x0, y0 = int(math.floor(x)), int(math.floor(y))
-            fx, fy = x - x0, y - y0
-            v0 = v1 = v2 = vw = 0.0
-            for dy in range(2):
-                for dx in range(2):
-                    xi, yi = x0 + dx, y0 + dy
-                    if 0 <= xi < w and 0 <= yi < h and valid[yi, xi] > 0:
-                        tap = (fx if dx else 1 - fx) * (fy if dy else 1 - fy)
-                        v0 += tap * maps[k, yi, xi, 0]
-                        v1 += tap * maps[k, yi, xi, 1]
-                        v2 += tap * maps[k, yi, xi, 2]
-                        vw += tap
-            if vw > 0:
-                v0, v1, v2 = v0 / vw, v1 / vw, v2 / vw
-            c = weights[j] * confidence
+            v0, v1, v2 = _fetch(maps, k, valid, n0, n1)
+            c = weights[p, j] * confidence
             total0 += c * v0
             total1 += c * v1
             total2 += c * v2
@@ -202,5 +267,3 @@ def _blend(local, frame, maps, sources, frames, weights, mirror, valid, fade_sta
             out[p, 0], out[p, 1], out[p, 2] = total0 / weight_sum, total1 / weight_sum, total2 / weight_sum
         else:
             out[p, 0], out[p, 1], out[p, 2] = f0, f1, f2
-
-

@@ -41,6 +41,13 @@ def register(sub) -> None:
                help="mediancut, varmin: number of point lights (a power of two)")
     add_option(p, "--seed", type=Number(int, 0, 2 ** 63 - 1), default=0,
                help="lights: the random generator's seed (a render is the same bit for bit for the same seed)")
+    add_option(p, "--views", type=Number(int, 1, 1000), default=12,
+               help="rsibr: source views (12, 42 or 162)")
+    add_option(p, "--map-size", type=Number(int, 8, 1024), default=128,
+               help="direct, rsibr: texels across each radiance map")
+    p.add_argument("--per-pixel-view", action="store_true",
+                   help="rsibr: blend each pixel's own view (not one map per frame)")
+    p.add_argument("--warp", choices=("normal", "mirror"), help="rsibr: the warp (default: the BRDF's central direction)")
     add_option(p, "--exposure", type=Number(float, -64, 64), default=0.0, help="exposure in stops for .png output")
     p.set_defaults(run=run)
 
@@ -82,6 +89,11 @@ def method_options(args) -> dict:
     if args.method == "lights":
         return {"light_samples": args.light_samples, "ao": args.ao, "ao_samples": args.ao_samples,
                 "seed": args.seed, "order": order}
+    if args.method == "direct":
+        return {"map_size": args.map_size}
+    if args.method == "rsibr":
+        return {"views": args.views, "map_size": args.map_size, "per_pixel_view": args.per_pixel_view,
+                "warp": args.warp}
     return {"order": order} if args.method == "hybrid" else {}
 
 

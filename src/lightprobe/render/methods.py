@@ -336,10 +336,19 @@ METHODS = {"sh": SHMethod, "brute": BruteMethod, "hybrid": HybridMethod, "lights
            "mediancut": PointLightsMethod, "varmin": VarminMethod}
 
 
+def all_methods() -> dict:
+    """Every rendering method by name: those here and the glossy ones (:mod:`lightprobe.render.glossy`, which
+    builds on this module's :class:`Method`)."""
+    from .glossy import GLOSSY_METHODS
+
+    return {**METHODS, **GLOSSY_METHODS}
+
+
 def method(name: str, **options) -> Method:
     """A method by name with its options (e.g. ``method("sh", order=4, per_vertex=True)``)."""
+    known = all_methods()
     try:
-        cls = METHODS[name]
+        cls = known[name]
     except KeyError:
-        raise UsageError(f"unknown method {name!r}; known: {', '.join(METHODS)}") from None
+        raise UsageError(f"unknown method {name!r}; known: {', '.join(known)}") from None
     return cls(**options)

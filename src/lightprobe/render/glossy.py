@@ -1,0 +1,196 @@
+"""Rendering methods for glossy materials (Cabral, Olano & Nemec 1999, and the split-sum baseline engines ship).
+
+Every method here shades a scene's glossy meshes (:attr:`Material.glossy`) by its own means and its Lambertian
+meshes exactly (brute-force irradiance, no shadows), so glossy and diffuse surfaces share one scene. No method
+casts shadows or interreflections (the radiance-map methods' assumption, SPEC §4): compare them with Mitsuba's
+direct lighting of convex objects or read the difference as what they leave out.
+
+* ``direct`` — the exact radiance map for the camera's view (eye − target), read at each pixel's normal: the
+  paper's one map per frame, computed instead of synthesised (the orthographic approximation, no blending error).
+* ``rsibr`` — reflection-space IBR: radiance maps at ``views`` geodesic view directions, baked once per
+  environment and BRDF; per frame one map synthesised for the camera's view (the paper), or with
+  ``per_pixel_view`` each pixel's own view blended from the three maps around it (removing the orthographic
+  approximation).
+* ``splitsum`` — Karis 2013 as Filament and three.js do it: the environment prefiltered with the GGX lobe of the
+  material's α under n = v = r (:func:`lightprobe.prefilter.prefilter_cube`), read at the mirror direction, times
+  F0·A(n·v) + B(n·v), the DFG terms of the same GGX (F0 = the material's Fresnel at normal incidence, Schlick's
+  curve from there). GGX materials only.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..brdf import GGX, BRDF, Schlick, reflect
+from ..errors import UsageError
+from ..irradiance import brute_irradiance
+from ..prefilter import hammersley, prefilter_cube
+from ..radiance import check_views, geodesic_views, prepare, radiance_map, view_frame
+from ..radiancefile import RadianceSet
+from ..rsibr import map_at_normals, reflected_by_view, synthesize
+from .methods import Method, PerEnvironment
+
+DEFAULT_MAP_SIZE = 128
+MAX_MAP_SIZE = 1024
+SPLITSUM_CUBE = 128  # face size of the prefiltered cube
+DFG_STEPS, DFG_SAMPLES = 64, 4096
+
+
+def camera_view(scene) -> np.ndarray:
+    """The unit direction from the camera's target toward its eye: the one view of a frame's radiance map."""
+    d = np.asarray(scene.camera.eye, dtype=np.float64) - np.asarray(scene.camera.target, dtype=np.float64)
+    return d / np.linalg.norm(d)
+
+
+class GlossyMethod(Method):
+    """Base: Lambertian meshes by brute-force irradiance, glossy ones by :meth:`reflected`."""
+
+    glossy = True
+
+    def __init__(self):
+        self._cache = PerEnvironment(lambda env: {})
+
+    def cached(self, scene, key, make):
+        """A value made once per environment and ``key`` (a BRDF's spec, a view, …)."""
+        store = self._cache.get(scene.environment)
+        if key not in store:
+            store[key] = make()
+        return store[key]
+
+    def shade(self, scene, tracer, hits):
+        out = np.zeros((len(hits), 3))
+        for k, mesh in enumerate(scene.meshes):
+            on = np.flatnonzero(hits.mesh == k)
+            if not on.size:
+                continue
+            if mesh.material.glossy:
+                out[on] = self.reflected(scene, mesh.material.brdf, hits.normal[on], hits.view[on])
+            else:
+                out[on] = hits.albedo[on] * brute_irradiance(scene.environment, hits.normal[on]) / np.pi
+        return out
+
+    def reflected(self, scene, brdf: BRDF, normals: np.ndarray, views: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def lighting(self, scene):
+        return self.cached(scene, "lighting", lambda: prepare(scene.environment))
+
+
+def _check_size(size) -> int:
+    if not isinstance(size, (int, np.integer)) or not 8 <= size <= MAX_MAP_SIZE:
+        raise UsageError(f"radiance map size must be a whole number from 8 to {MAX_MAP_SIZE}, got {size!r}")
+    return int(size)
+
+
+class DirectMethod(GlossyMethod):
+    """The exact radiance map of the camera's view, read at each pixel's normal."""
+
+    name = "direct"
+
+    def __init__(self, map_size: int = DEFAULT_MAP_SIZE):
+        super().__init__()
+        self.map_size = _check_size(map_size)
+
+    def reflected(self, scene, brdf, normals, views):
+        v = camera_view(scene)
+        rmap = self.cached(scene, ("direct", brdf.spec(), tuple(v), self.map_size),
+                           lambda: radiance_map(self.lighting(scene), brdf, v, self.map_size))
+        return map_at_normals(rmap, normals)
+
+    def describe(self):
+        return f"direct: the exact {self.map_size}² radiance map of the camera's view, read at each normal"
+
+
+class RSIBRMethod(GlossyMethod):
+    """Reflection-space IBR from ``views`` precomputed maps (see the module docstring)."""
+
+    name = "rsibr"
+
+    def __init__(self, views: int = 12, map_size: int = DEFAULT_MAP_SIZE, per_pixel_view: bool = False,
+                 warp: str | None = None):
+        super().__init__()
+        self.views, self.map_size = check_views(views), _check_size(map_size)
+        self.per_pixel_view, self.warp = bool(per_pixel_view), warp
+        if warp not in (None, "normal", "mirror"):
+            raise UsageError(f"warp must be normal or mirror, got {warp!r}")
+
+    def radiance_set(self, scene, brdf: BRDF) -> RadianceSet:
+        """The set of source maps of ``brdf`` under the scene's environment (baked once per environment)."""
+        def bake():
+            views, triangles = geodesic_views(self.views)
+            maps = tuple(radiance_map(self.lighting(scene), brdf, v, self.map_size) for v in views)
+            return RadianceSet(brdf, views, np.array([view_frame(v) for v in views]), maps, triangles, {})
+
+        return self.cached(scene, ("set", brdf.spec(), self.views, self.map_size), bake)
+
+    def reflected(self, scene, brdf, normals, views):
+        rset = self.radiance_set(scene, brdf)
+        if self.per_pixel_view:
+            return reflected_by_view(rset, normals, views, self.warp)
+        return map_at_normals(synthesize(rset, camera_view(scene), self.warp), normals)
+
+    def describe(self):
+        how = "each pixel's own view blended" if self.per_pixel_view else "one map per frame"
+        return f"rsibr: {self.views} radiance maps {self.map_size}², {how} ({self.warp or 'central'} warp)"
+
+
+def dfg_terms(alpha: float, steps: int = DFG_STEPS, samples: int = DFG_SAMPLES) -> np.ndarray:
+    """(steps, 2): A and B of the split sum at n·v = (i + ½)/steps — ∫ f_GGX(F = 1) cos · (1 − F_c) and
+    ∫ f_GGX(F = 1) cos · F_c with F_c = (1 − h·wi)⁵, so that ∫ f cos = F0·A + B under Schlick's Fresnel.
+    Importance-sampled with the same stratified uniforms at every n·v."""
+    brdf = GGX(alpha)
+    mu = (np.arange(steps) + 0.5) / steps
+    n = np.array([0.0, 0.0, 1.0])
+    wo = np.stack([np.sqrt(1 - mu * mu), np.zeros_like(mu), mu], axis=-1)[:, None, :]
+    u = hammersley(samples)[None]
+    wi, pdf = brdf.sample(wo, n, u)
+    f = brdf.eval(wi, wo, n)[..., 0] * np.maximum(wi[..., 2], 0.0)
+    weight = np.where(pdf > 0, f / np.where(pdf > 0, pdf, 1.0), 0.0)
+    h = wi + wo
+    h /= np.maximum(np.linalg.norm(h, axis=-1, keepdims=True), 1e-300)
+    fc = (1 - np.clip(np.sum(h * wi, axis=-1), 0.0, 1.0)) ** 5
+    return np.stack([(weight * (1 - fc)).mean(axis=1), (weight * fc).mean(axis=1)], axis=1)
+
+
+class SplitSumMethod(GlossyMethod):
+    """Karis's split sum (see the module docstring)."""
+
+    name = "splitsum"
+
+    def __init__(self, cube_size: int = SPLITSUM_CUBE):
+        super().__init__()
+        if cube_size < 8 or cube_size & (cube_size - 1) or cube_size > 512:
+            raise UsageError(f"splitsum cube size must be a power of two from 8 to 512, got {cube_size!r}")
+        self.cube_size = cube_size
+
+    def reflected(self, scene, brdf, normals, views):
+        if not isinstance(brdf, GGX):
+            raise UsageError(f"splitsum is defined for GGX materials, not {brdf.spec()}")
+        from ..envmap import EnvMap
+        from ..layouts import CUBE
+
+        levels = int(np.log2(self.cube_size)) + 1
+        cube = self.cached(scene, ("prefiltered", brdf.alpha, self.cube_size), lambda: EnvMap(
+            prefilter_cube(scene.environment, self.cube_size, [brdf.alpha] * levels).levels[0], CUBE))
+        dfg = self.cached(scene, ("dfg", brdf.alpha), lambda: dfg_terms(brdf.alpha))
+        mu = np.clip(np.sum(normals * views, axis=1), 0.0, 1.0)
+        x = np.clip(mu * DFG_STEPS - 0.5, 0, DFG_STEPS - 1)
+        i = np.minimum(x.astype(int), DFG_STEPS - 2)
+        t = (x - i)[:, None]
+        a_b = dfg[i] * (1 - t) + dfg[i + 1] * t
+        f0 = _normal_reflectance(brdf)
+        specular = f0[None, :] * a_b[:, :1] + a_b[:, 1:]
+        return cube.lookup(reflect(views, normals)) * specular
+
+    def describe(self):
+        return f"splitsum: GGX-prefiltered {self.cube_size}² cube × (F0·A + B) (Karis 2013)"
+
+
+def _normal_reflectance(brdf: GGX) -> np.ndarray:
+    """F0, the material's Fresnel at normal incidence (RGB): where the engines' Schlick curve starts."""
+    if isinstance(brdf.fresnel, Schlick):
+        return np.asarray(brdf.fresnel.f0)
+    return brdf.fresnel(np.array([1.0]))[0]
+
+
+GLOSSY_METHODS = {"direct": DirectMethod, "rsibr": RSIBRMethod, "splitsum": SplitSumMethod}
