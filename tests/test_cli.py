@@ -139,6 +139,9 @@ def test_demo_writes_a_report_with_pictures(tmp_path, capsys):
                  "engine_babylon_own_toward"):  # spheres drawn by three.js and Babylon.js themselves
         assert f"{name}.png" in index and (tmp_path / "report" / f"{name}.png").stat().st_size > 1000
     assert "Babylon.js 9.35 (Node, default SH path)" in index
+    for name in ("glossy_sources", "glossy_synthesised", "glossy_direct", "glossy_conductorgold_reference",
+                 "glossy_conductorgold_rsibr_per-pixel-view", "glossy_ggx_alpha0.2_splitsum"):  # the glossy section
+        assert f"{name}.png" in index and (tmp_path / "report" / f"{name}.png").stat().st_size > 500
 
 
 def test_demo_fails_when_the_reference_fails(tmp_path, monkeypatch):
