@@ -14,7 +14,8 @@ from lightprobe.errors import UsageError
 
 SPECS = ["lambert", "phong:n=50", "phong:n=3", "blinn:n=50", "blinn:n=5", "ggx:alpha=0.05", "ggx:alpha=0.2",
          "ggx:alpha=1", "ggx:alpha=0.2,conductor=gold", "ggx:alpha=0.3,ior=1.5", "ggx:alpha=0.2,f0=0.04",
-         "coat:alpha=0.1,ior=1.5,albedo=1", "coat:alpha=0.6,albedo=0.9/0.5/0.1"]
+         "coat:alpha=0.1,ior=1.5,albedo=1", "coat:alpha=0.6,albedo=0.9/0.5/0.1", "plastic:alpha=0.1,albedo=1",
+         "plastic:alpha=0.4,ior=1.6,albedo=0.8/0.3/0.1"]
 VIEWS = np.array([1.0, 0.8, 0.5, 0.25, 0.1, 0.02])
 
 

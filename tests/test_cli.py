@@ -140,7 +140,8 @@ def test_demo_writes_a_report_with_pictures(tmp_path, capsys):
         assert f"{name}.png" in index and (tmp_path / "report" / f"{name}.png").stat().st_size > 1000
     assert "Babylon.js 9.35 (Node, default SH path)" in index
     for name in ("glossy_sources", "glossy_synthesised", "glossy_direct", "glossy_conductorgold_reference",
-                 "glossy_conductorgold_rsibr_per-pixel-view", "glossy_ggx_alpha0.2_splitsum"):  # the glossy section
+                 "glossy_conductorgold_rsibr_per-pixel-view", "glossy_conductorgold_splitsum",
+                 "glossy_plastic_reference", "glossy_plastic_rsibr"):  # the glossy section
         assert f"{name}.png" in index and (tmp_path / "report" / f"{name}.png").stat().st_size > 500
 
 

@@ -32,10 +32,11 @@ def grace():
     return box_reduce(read_envmap(shared("debevec/angular/grace_probe.hdr")))
 
 
-@pytest.mark.parametrize("spec", ["ggx:alpha=0.2,conductor=gold", "ggx:alpha=0.1", "lambert:albedo=0.6/0.5/0.4"])
+@pytest.mark.parametrize("spec", ["ggx:alpha=0.2,conductor=gold", "ggx:alpha=0.1", "lambert:albedo=0.6/0.5/0.4",
+                                  "plastic:alpha=0.15,albedo=0.6/0.2/0.1"])
 def test_brute_force_matches_mitsuba_on_a_sphere_within_the_references_own_noise(grace, spec):
-    """A sphere of GGX gold (Mitsuba's roughconductor, same α, η, k), GGX without Fresnel (material: none) and a
-    Lambert BRDF under Grace: our per-pixel reflected radiance against Mitsuba at 1024 spp differs by less than
+    """A sphere of GGX gold (Mitsuba's roughconductor, same α, η, k), GGX without Fresnel (material: none), a
+    Lambert BRDF and a plastic (Mitsuba's roughplastic) under Grace: our per-pixel reflected radiance against Mitsuba at 1024 spp differs by less than
     two Mitsuba renders of other seeds differ from each other (relative MSE 0.75×), and the mean of each channel
     over the sphere agrees within 1 % (a wrong Fresnel colour or a missing G term moves it by several)."""
     scene = _glossy_sphere(grace, spec)
@@ -58,6 +59,10 @@ def test_the_mitsuba_bsdfs_carry_the_same_parameters(grace):
                     "eta": {"type": "rgb", "value": list(fresnel.eta)}, "k": {"type": "rgb", "value": list(fresnel.k)}}
     mirror = _glossy_sphere(grace, "ggx:alpha=0.1").meshes[0]
     assert mitsuba_bsdf(mirror, None, 0)["material"] == "none"
+    plastic = _glossy_sphere(grace, "plastic:alpha=0.2,ior=1.6,albedo=0.5/0.4/0.3").meshes[0]
+    assert mitsuba_bsdf(plastic, None, 0) == {"type": "roughplastic", "distribution": "ggx", "alpha": 0.2,
+                                              "int_ior": 1.6, "ext_ior": 1.0, "nonlinear": False,
+                                              "diffuse_reflectance": {"type": "rgb", "value": [0.5, 0.4, 0.3]}}
     for spec in ("phong:n=20", "coat:alpha=0.1", "ggx:alpha=0.2,f0=0.04", "ggx:alpha=0.2,ior=1.5"):
         with pytest.raises(UsageError, match="no Mitsuba 3 BSDF with the same formula"):
             mitsuba_bsdf(_glossy_sphere(grace, spec).meshes[0], None, 0)

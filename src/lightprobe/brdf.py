@@ -449,8 +449,97 @@ class Coat(BRDF):
         return self._coat.lobe_width()
 
 
+PLASTIC_STEPS = 64  # μ samples of the plastic's tabulated coat transmittance (as Mitsuba's roughplastic)
+PLASTIC_QUADRATURE = 128  # per axis: (cos θ_h, φ) midpoint quadrature of the coat's reflectance at each μ
+
+
+def _fresnel_either_side(cos: np.ndarray, eta: float) -> np.ndarray:
+    """Unpolarised dielectric Fresnel reflectance for relative index ``eta`` on either side (eta < 1: from inside,
+    total internal reflection past the critical angle)."""
+    c = np.clip(cos, 0.0, 1.0)
+    sin_t2 = (1 - c * c) / (eta * eta)
+    cos_t = np.sqrt(np.clip(1 - sin_t2, 0.0, None))
+    rs = (c - eta * cos_t) / np.maximum(c + eta * cos_t, 1e-300)
+    rp = (eta * c - cos_t) / np.maximum(eta * c + cos_t, 1e-300)
+    return np.where(sin_t2 >= 1, 1.0, 0.5 * (rs * rs + rp * rp))
+
+
+def _half_vector_quadrature(alpha: float) -> tuple[np.ndarray, np.ndarray]:
+    """Half vectors (K·2K, 3) at the midpoints of equal-probability cells of D cos θ_h, and their cos θ_h: a
+    quadrature of ∫ g(h) D(h) cos θ_h dω_h = mean of g over them."""
+    k = PLASTIC_QUADRATURE
+    a2 = alpha * alpha
+    u = (np.arange(k) + 0.5) / k
+    cos_h = np.sqrt((1 - u) / (1 + (a2 - 1) * u))
+    phi = (np.arange(2 * k) + 0.5) / (2 * k) * 2 * np.pi
+    sin_h = np.sqrt(1 - cos_h ** 2)
+    h = np.stack(np.broadcast_arrays(sin_h[:, None] * np.cos(phi), sin_h[:, None] * np.sin(phi),
+                                     cos_h[:, None]), axis=-1).reshape(-1, 3)
+    return h, np.repeat(cos_h, 2 * k)
+
+
+def rough_dielectric_albedo(alpha: float, eta: float, mu: np.ndarray, transmitted: bool) -> np.ndarray:
+    """The share of light arriving at cos θ = μ (from the side of index 1, relative index ``eta`` beyond) that
+    the rough GGX interface reflects (``transmitted`` False) or refracts through it (True): over microfacets m
+    seen from wi (density G1(wi) (wi·m) D(m) / μ), the mean of F · G1(reflected) or (1 − F) · G1(refracted) —
+    the single-scattering albedos Mitsuba tabulates for roughplastic. Midpoint quadrature over m."""
+    h, cos_h = _half_vector_quadrature(alpha)
+    out = np.empty(len(mu))
+    for i, m in enumerate(np.asarray(mu, dtype=np.float64)):
+        wi = np.array([np.sqrt(max(0.0, 1 - m * m)), 0.0, m])
+        c = h @ wi
+        visible = np.where(c > 0, smith_g1(np.array(m), alpha) * c / (m * cos_h), 0.0)
+        fresnel = _fresnel_either_side(c, eta)
+        if transmitted:
+            cos_t = np.sqrt(np.clip(1 - (1 - c * c) / (eta * eta), 0.0, None))
+            w = -wi / eta + (c / eta - cos_t)[:, None] * h  # into the far side: w·h = −cos_t, w_z < 0
+            value = (1 - fresnel) * smith_g1(-w[:, 2], alpha) * (w[:, 2] < 0)
+        else:
+            w = 2 * c[:, None] * h - wi
+            value = fresnel * smith_g1(w[:, 2], alpha)
+        out[i] = float(np.mean(visible * value))
+    return out
+
+
+@dataclass(repr=False)
+class Plastic(Coat):
+    """Mitsuba 3's ``roughplastic`` (GGX, same α, interior index ``ior`` over exterior 1, ``albedo`` its
+    diffuse_reflectance, linear): GGX reflection off the dielectric, plus the diffuse base seen through it,
+    f = f_GGX + albedo / (1 − R_int) · t(μ_i) t(μ_o) / (π η²) — t(μ) the rough interface's transmittance from
+    outside, R_int = 2 ∫ R(μ; 1/η) μ dμ the light it sends back inside (:func:`rough_dielectric_albedo`; both
+    tabulated at 64 μ and read linearly, as Mitsuba does)."""
+
+    alpha: float = 0.1
+    ior: float = 1.49
+    albedo: tuple = (0.5, 0.5, 0.5)
+    name = "plastic"
+
+    def __post_init__(self):
+        super().__post_init__()
+        mu = np.maximum(np.arange(PLASTIC_STEPS) / (PLASTIC_STEPS - 1), 1e-6)
+        self._transmittance = rough_dielectric_albedo(self.alpha, float(self.ior), mu, transmitted=True)
+        internal = 2 * float(np.mean(rough_dielectric_albedo(self.alpha, 1 / float(self.ior), mu, False) * mu))
+        self._diffuse = np.asarray(self.albedo) / (1 - internal) / (np.pi * float(self.ior) ** 2)
+
+    def _through_coat(self, cos: np.ndarray) -> np.ndarray:
+        x = np.clip(cos, 0.0, 1.0) * (PLASTIC_STEPS - 1)
+        i = np.minimum(x.astype(int), PLASTIC_STEPS - 2)
+        t = x - i
+        return self._transmittance[i] * (1 - t) + self._transmittance[i + 1] * t
+
+    def eval(self, wi, wo, n):
+        cos_i, cos_o = _dot(n, wi), _dot(n, wo)
+        base = np.where(_above(wi, wo, n), self._through_coat(cos_i) * self._through_coat(cos_o), 0.0)
+        return self._coat.eval(wi, wo, n) + base[..., None] * self._diffuse
+
+    def kernel(self):
+        table = fresnel_table(self._coat.fresnel)
+        table[:, 1] = self._through_coat(np.linspace(0.0, 1.0, len(table)))  # column 0: F; column 1: t(μ)
+        return PLASTIC, np.array([self.alpha, *self._diffuse]), table
+
+
 # ---- compiled sums ----------------------------------------------------------------------------------------------
-LAMBERT, PHONG, BLINN, GGX_MODEL, COAT = range(5)  # model numbers of the compiled evaluation
+LAMBERT, PHONG, BLINN, GGX_MODEL, COAT, PLASTIC = range(6)  # model numbers of the compiled evaluation
 FRESNEL_STEPS = 16384  # entries of the tabulated Fresnel term over cos ∈ [0, 1] (read linearly: within 1e-5)
 _NO_FRESNEL = np.ones((2, 3))
 
@@ -475,9 +564,18 @@ def _g1(cos, a2):  # pragma: no cover - compiled
 
 
 @njit(cache=True, inline="always")
-def brdf_times_cosine(model, p, table, i0, i1, i2, o0, o1, o2, n0, n1, n2, out):  # pragma: no cover - compiled
+def _view_term(model, p, co):  # pragma: no cover - compiled
+    """G1(wo) / (4 n·wo) of the microfacet models (GGX, coat), 0 for the others or a view below the surface."""
+    if (model != GGX_MODEL and model != COAT and model != PLASTIC) or co <= 0.0:
+        return 0.0
+    return _g1(co, p[0] * p[0]) / (4 * co)
+
+
+@njit(cache=True, inline="always")
+def brdf_times_cosine(model, p, table, i0, i1, i2, o0, o1, o2, n0, n1, n2, view_term, out):  # pragma: no cover
     """out[:] = f_r(wi, wo; n) · (n·wi) for one pair, the model numbered ``model`` with parameters ``p`` (the
-    classes' ``kernel()``); 0 below the surface. The same formulas as the classes' ``eval``, tested equal."""
+    classes' ``kernel()``); 0 below the surface. The same formulas as the classes' ``eval``, tested equal.
+    ``view_term`` is :func:`_view_term` of n·wo (the part that depends on the view only, made once per point)."""
     ci, co = n0 * i0 + n1 * i1 + n2 * i2, n0 * o0 + n1 * o1 + n2 * o2
     if ci <= 0.0 or co <= 0.0:
         out[0] = out[1] = out[2] = 0.0
@@ -501,8 +599,14 @@ def brdf_times_cosine(model, p, table, i0, i1, i2, o0, o1, o2, n0, n1, n2, out):
         return
     a2 = p[0] * p[0]
     d = a2 / (math.pi * (ch * ch * (a2 - 1) + 1) ** 2) if ch > 0 else 0.0
-    spec = d * _g1(ci, a2) * _g1(co, a2) / (4 * co)  # times n·wi already: D G1 G1 / (4 n·wo)
+    spec = d * _g1(ci, a2) * view_term  # times n·wi already: D G1(wi) G1(wo) / (4 n·wo)
     hi = h0 * i0 + h1 * i1 + h2 * i2
+    if model == PLASTIC:  # table column 0: the dielectric's F, column 1: the coat's transmittance t(μ)
+        f = spec * _table(table, hi, 0)
+        through = _table(table, ci, 1) * _table(table, co, 1) * ci
+        for c in range(3):
+            out[c] = f + through * p[1 + c]
+        return
     for c in range(3):
         out[c] = spec * _table(table, hi, c)
     if model == COAT:
@@ -515,8 +619,9 @@ def brdf_times_cosine(model, p, table, i0, i1, i2, o0, o1, o2, n0, n1, n2, out):
 def _eval_cosine_many(model, p, table, wi, wo, n, out):  # pragma: no cover - compiled
     for k in prange(wi.shape[0]):
         value = np.empty(3)
+        co = wo[k, 0] * n[k, 0] + wo[k, 1] * n[k, 1] + wo[k, 2] * n[k, 2]
         brdf_times_cosine(model, p, table, wi[k, 0], wi[k, 1], wi[k, 2], wo[k, 0], wo[k, 1], wo[k, 2], n[k, 0],
-                          n[k, 1], n[k, 2], value)
+                          n[k, 1], n[k, 2], _view_term(model, p, co), value)
         out[k, 0], out[k, 1], out[k, 2] = value[0], value[1], value[2]
 
 
@@ -537,10 +642,12 @@ def reflected_sums(model, p, table, normals, views, dirs, weighted, out):  # pra
         acc0 = acc1 = acc2 = 0.0
         n0, n1, n2 = normals[t, 0], normals[t, 1], normals[t, 2]
         o0, o1, o2 = views[t, 0], views[t, 1], views[t, 2]
+        view_term = _view_term(model, p, n0 * o0 + n1 * o1 + n2 * o2)
         for s in range(dirs.shape[0]):
             if n0 * dirs[s, 0] + n1 * dirs[s, 1] + n2 * dirs[s, 2] <= 0.0:
                 continue
-            brdf_times_cosine(model, p, table, dirs[s, 0], dirs[s, 1], dirs[s, 2], o0, o1, o2, n0, n1, n2, value)
+            brdf_times_cosine(model, p, table, dirs[s, 0], dirs[s, 1], dirs[s, 2], o0, o1, o2, n0, n1, n2, view_term,
+                              value)
             acc0 += value[0] * weighted[s, 0]
             acc1 += value[1] * weighted[s, 1]
             acc2 += value[2] * weighted[s, 2]
@@ -565,7 +672,7 @@ def directional_albedo(brdf: BRDF, cos_view: np.ndarray, samples: int = 4096, se
     return weight.mean(axis=1)
 
 
-BRDFS = {"lambert": Lambert, "phong": Phong, "blinn": BlinnPhong, "ggx": GGX, "coat": Coat}
+BRDFS = {"lambert": Lambert, "phong": Phong, "blinn": BlinnPhong, "ggx": GGX, "coat": Coat, "plastic": Plastic}
 
 
 def _number(key: str, text: str) -> float:
@@ -588,7 +695,8 @@ def _triple(key: str, text: str):
 def parse_brdf(spec: str) -> BRDF:
     """A BRDF from ``name:key=value,…`` — ``lambert``, ``phong:n=50``, ``blinn:n=50``, ``ggx:alpha=0.2,f0=0.04``,
     ``ggx:alpha=0.2,conductor=gold`` or ``…,eta=0.2/0.4/1.4,k=4/2.4/1.6``, ``ggx:alpha=0.2,ior=1.5`` (exact
-    dielectric), ``coat:alpha=0.1,ior=1.5,albedo=0.5/0.1/0.1``. RGB values are one number or r/g/b."""
+    dielectric), ``coat:alpha=0.1,ior=1.5,albedo=0.5/0.1/0.1``, ``plastic:alpha=0.1,ior=1.49,albedo=0.5/0.1/0.1``
+    (Mitsuba's roughplastic). RGB values are one number or r/g/b."""
     name, _, rest = str(spec).strip().partition(":")
     if name not in BRDFS:
         raise UsageError(f"unknown BRDF {name!r}; known: {', '.join(BRDFS)}")
@@ -601,7 +709,8 @@ def parse_brdf(spec: str) -> BRDF:
             raise UsageError(f"BRDF parameter {key.strip()} given twice in {spec!r}")
         options[key.strip()] = value.strip()
     allowed = {"lambert": {"albedo"}, "phong": {"n", "ks"}, "blinn": {"n", "ks"},
-               "ggx": {"alpha", "f0", "ior", "conductor", "eta", "k"}, "coat": {"alpha", "ior", "albedo"}}[name]
+               "ggx": {"alpha", "f0", "ior", "conductor", "eta", "k"}, "coat": {"alpha", "ior", "albedo"},
+               "plastic": {"alpha", "ior", "albedo"}}[name]
     unknown = sorted(set(options) - allowed)
     if unknown:
         raise UsageError(f"{name} has no parameter {unknown[0]!r}; it takes {', '.join(sorted(allowed))}")

@@ -109,9 +109,10 @@ def _reflectance(mesh: MeshInstance, folder: Path, index: int) -> dict:
 def mitsuba_bsdf(mesh: MeshInstance, folder: Path, index: int) -> dict:
     """The Mitsuba 3 BSDF of a mesh's material, the same parameters: the albedo (or texture) as ``diffuse``; a
     Lambert BRDF as ``diffuse``; GGX with a conductor's η, k as ``roughconductor`` (GGX, same α, η, k per RGB
-    channel), and GGX without Fresnel (f0 = 1) as ``roughconductor`` with ``material: none`` (Mitsuba's perfect
-    reflector). Others have no Mitsuba equivalent with the same formula, and are refused rather than approximated."""
-    from ..brdf import GGX, Conductor, Lambert, Schlick
+    channel), GGX without Fresnel (f0 = 1) as ``roughconductor`` with ``material: none`` (Mitsuba's perfect
+    reflector), the plastic as ``roughplastic`` (GGX, α, interior index, diffuse reflectance). Others have no Mitsuba
+    equivalent with the same formula, and are refused rather than approximated."""
+    from ..brdf import GGX, Conductor, Lambert, Plastic, Schlick
 
     brdf = mesh.material.brdf
     if brdf is None:
@@ -124,8 +125,12 @@ def mitsuba_bsdf(mesh: MeshInstance, folder: Path, index: int) -> dict:
                 "k": {"type": "rgb", "value": [float(x) for x in brdf.fresnel.k]}}
     if isinstance(brdf, GGX) and isinstance(brdf.fresnel, Schlick) and brdf.fresnel.f0 == (1.0, 1.0, 1.0):
         return {"type": "roughconductor", "distribution": "ggx", "alpha": brdf.alpha, "material": "none"}
+    if isinstance(brdf, Plastic):  # exterior index exactly 1 (Mitsuba's default is air's 1.000277)
+        return {"type": "roughplastic", "distribution": "ggx", "alpha": brdf.alpha, "int_ior": float(brdf.ior),
+                "ext_ior": 1.0, "nonlinear": False,
+                "diffuse_reflectance": {"type": "rgb", "value": [float(x) for x in brdf.albedo]}}
     raise UsageError(f"mesh {mesh.name!r}: {brdf.spec()} has no Mitsuba 3 BSDF with the same formula (the reference "
-                     "renders Lambert, and GGX with a conductor or without Fresnel)")
+                     "renders Lambert, GGX with a conductor or without Fresnel, and plastic)")
 
 
 def scene_dict(mi, scene: Scene, folder: Path, spp: int, global_illumination: bool, seed: int) -> dict:
