@@ -40,7 +40,7 @@ def _disc(size: int) -> np.ndarray:
     return x * x + y * y < 1
 
 
-def synthesis(size: int, tests: int) -> None:
+def synthesis(size: int, tests: int, alphas: list[float]) -> None:
     print(f"\n## RS-IBR synthesis vs the direct map ({size}², {tests} random views, Grace; relative RMSE over the disc)")
     print(f"{'views':>5s} {'α':>5s} " + " ".join(f"{w + ' mean':>12s} {w + ' max':>11s}" for w in ("normal", "mirror")))
     lighting = prepare(read_envmap(SHARED / GRACE))
@@ -48,7 +48,7 @@ def synthesis(size: int, tests: int) -> None:
     targets = rng.normal(size=(tests, 3))
     targets /= np.linalg.norm(targets, axis=1, keepdims=True)
     disc = _disc(size)
-    for alpha in (0.05, 0.1, 0.2, 0.4):
+    for alpha in alphas:
         brdf = parse_brdf(f"ggx:alpha={alpha}")
         truth = [radiance_map(lighting, brdf, v, size).data[disc] for v in targets]
         for count in (12, 42, 162):
@@ -158,6 +158,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--part", choices=("synthesis", "furnace", "speed", "quality", "all"), default="all")
     parser.add_argument("--reference-spp", type=int, default=512)
+    parser.add_argument("--alphas", default="0.05,0.1,0.2,0.4", help="synthesis: the GGX α values (comma-separated)")
     parser.add_argument("--size", type=int, default=128)
     parser.add_argument("--tests", type=int, default=100)
     args = parser.parse_args()
@@ -168,7 +169,7 @@ def main() -> int:
     if args.part in ("speed", "all"):
         speed()
     if args.part in ("synthesis", "all"):
-        synthesis(args.size, args.tests)
+        synthesis(args.size, args.tests, [float(a) for a in args.alphas.split(",")])
     if args.part in ("quality", "all"):
         quality(min(args.size, 96), args.reference_spp)
     return 0
