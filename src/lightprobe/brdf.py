@@ -391,7 +391,8 @@ class GGX(BRDF):
         return out
 
     def kernel(self):
-        return GGX_MODEL, np.array([self.alpha]), fresnel_table(self.fresnel)
+        constant = isinstance(self.fresnel, Schlick) and self.fresnel.f0 == (1.0, 1.0, 1.0)
+        return GGX_MODEL, np.array([self.alpha]), _NO_FRESNEL if constant else fresnel_table(self.fresnel)
 
     def lobe_width(self):
         return min(np.pi / 2, 2 * self.alpha)
@@ -552,6 +553,8 @@ def fresnel_table(fresnel) -> np.ndarray:
 
 @njit(cache=True, inline="always")
 def _table(table, cos, c):  # pragma: no cover - compiled
+    if table.shape[0] == 2 and table[0, c] == table[1, c]:  # a constant (no Fresnel: F = 1)
+        return table[0, c]
     x = min(max(cos, 0.0), 1.0) * (table.shape[0] - 1)
     i = min(int(x), table.shape[0] - 2)
     t = x - i
@@ -589,10 +592,11 @@ def brdf_times_cosine(model, p, table, i0, i1, i2, o0, o1, o2, n0, n1, n2, view_
         v = p[1] * (p[0] + 2) / (2 * math.pi) * max(r, 0.0) ** p[0] * ci
         out[0] = out[1] = out[2] = v
         return
-    h0, h1, h2 = i0 + o0, i1 + o1, i2 + o2
-    norm = math.sqrt(h0 * h0 + h1 * h1 + h2 * h2)
-    h0, h1, h2 = h0 / norm, h1 / norm, h2 / norm
-    ch = max(n0 * h0 + n1 * h1 + n2 * h2, 0.0)
+    # the half vector h = (wi + wo)/|wi + wo| through dot products: |wi + wo| = √(2 + 2 wi·wo), n·h = (n·wi + n·wo)
+    # / |wi + wo|, h·wi = (1 + wi·wo) / |wi + wo|
+    io = i0 * o0 + i1 * o1 + i2 * o2
+    norm = math.sqrt(max(2.0 + 2.0 * io, 1e-300))
+    ch = max((ci + co) / norm, 0.0)
     if model == BLINN:
         v = p[1] * ch ** p[0] * ci
         out[0] = out[1] = out[2] = v
@@ -600,7 +604,7 @@ def brdf_times_cosine(model, p, table, i0, i1, i2, o0, o1, o2, n0, n1, n2, view_
     a2 = p[0] * p[0]
     d = a2 / (math.pi * (ch * ch * (a2 - 1) + 1) ** 2) if ch > 0 else 0.0
     spec = d * _g1(ci, a2) * view_term  # times n·wi already: D G1(wi) G1(wo) / (4 n·wo)
-    hi = h0 * i0 + h1 * i1 + h2 * i2
+    hi = (1.0 + io) / norm
     if model == PLASTIC:  # table column 0: the dielectric's F, column 1: the coat's transmittance t(μ)
         f = spec * _table(table, hi, 0)
         through = _table(table, ci, 1) * _table(table, co, 1) * ci
