@@ -103,7 +103,7 @@ def ggx_half_vectors(alpha: float, count: int) -> tuple[np.ndarray, np.ndarray]:
     return np.stack([sin_h * np.cos(phi), sin_h * np.sin(phi), cos_h], axis=-1), cos_h
 
 
-def _pyramid(cube: EnvMap) -> list[EnvMap]:
+def box_pyramid(cube: EnvMap) -> list[EnvMap]:
     """The box-filtered pyramid of a cube map, finest first (each level's ∫L dω is the same)."""
     levels = [cube]
     while levels[-1].grid[-1] > 1:
@@ -237,7 +237,7 @@ def prefilter_cube(env: EnvMap, size: int, alphas: list[float] | None = None, fr
     same = env.layout == CUBE and env.grid[-1] == size and np.array_equal(frame.to_frame, np.eye(3))
     source = env if same else resample(env, CUBE, size, rotation=frame.to_frame)
     clipped, peak_dirs, peak_power = split_peaks(source, peaks)
-    pyramid = _pyramid(clipped)
+    pyramid = box_pyramid(clipped)
     samplers = None
     levels = []
     for i, alpha in track(list(enumerate(alphas)), "prefiltering GGX mips"):

@@ -25,10 +25,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from .brdf import BRDF, reflected_sums
-from .envmap import EnvMap, box_reduce, resample
+from .envmap import EnvMap, resample
 from .errors import UsageError
 from .layouts import CUBE, Sphere
-from .prefilter import split_peaks
+from .prefilter import box_pyramid, split_peaks
 
 WORKING_SIZE = 128  # face size of the working cube (0.7° texels)
 PEAKS = 64  # brightest texels summed as point sources
@@ -62,10 +62,7 @@ def prepare(env: EnvMap, size: int = WORKING_SIZE, peaks: int = PEAKS) -> Lighti
     split into ``peaks`` point sources and a bounded rest, and the rest's box-filtered pyramid."""
     cube = env if env.layout == CUBE and env.grid[-1] == size else resample(env, CUBE, size)
     rest, directions, power = split_peaks(cube, peaks)
-    levels = [rest]
-    while levels[-1].grid[-1] > 1:
-        levels.append(box_reduce(levels[-1]))
-    return Lighting(tuple(levels), directions, power)
+    return Lighting(tuple(box_pyramid(rest)), directions, power)
 
 
 def _sources(level: EnvMap) -> tuple[np.ndarray, np.ndarray]:

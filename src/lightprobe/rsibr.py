@@ -57,29 +57,19 @@ def g_mirror_inverse(r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 # ---- blending -----------------------------------------------------------------------------------------------------
-def _excess(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> float:
-    """Area (spherical excess) of the triangle of unit vectors a, b, c: tan(E/2) = |a·(b×c)| / (1 + a·b + b·c + c·a)
-    (Van Oosterom & Strackee 1983)."""
-    triple = abs(float(a @ np.cross(b, c)))
-    return 2 * float(np.arctan2(triple, 1 + a @ b + b @ c + c @ a))
-
-
-def containing_triangle(views: np.ndarray, triangles: np.ndarray, v: np.ndarray) -> int:
-    """The index of the view-mesh triangle containing unit v: all three triple products [v_i, v_{i+1}, v] ≥ 0 (the
-    one with the largest smallest product, so a v on an edge or a vertex picks one deterministically)."""
-    a, b, c = views[triangles[:, 0]], views[triangles[:, 1]], views[triangles[:, 2]]
-    products = np.stack([np.cross(a, b) @ v, np.cross(b, c) @ v, np.cross(c, a) @ v], axis=1)
-    return int(np.argmax(products.min(axis=1)))
+def _excess(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Areas (spherical excess) of the triangles of unit vectors a, b, c (rows): tan(E/2) = |a·(b×c)| /
+    (1 + a·b + b·c + c·a) (Van Oosterom & Strackee 1983)."""
+    triple = np.abs(np.einsum("ij,ij->i", a, np.cross(b, c)))
+    return 2 * np.arctan2(triple, 1 + np.einsum("ij,ij->i", a, b) + np.einsum("ij,ij->i", b, c)
+                          + np.einsum("ij,ij->i", c, a))
 
 
 def blend_weights(views: np.ndarray, triangles: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The three source views (indices) around unit v and their spherical barycentric weights: vertex i weighs the
     area of the triangle v makes with the other two, over the whole triangle's. ≥ 0, summing to 1."""
-    tri = triangles[containing_triangle(views, triangles, v)]
-    a, b, c = views[tri]
-    whole = _excess(a, b, c)
-    weights = np.array([_excess(v, b, c), _excess(a, v, c), _excess(a, b, v)]) / whole
-    return tri, weights / weights.sum()
+    sources, weights = blend_weights_many(views, triangles, np.asarray(v, dtype=np.float64)[None, :])
+    return sources[0], weights[0]
 
 
 def synthesize(rset: RadianceSet, view: np.ndarray, warp: str | None = None, size: int | None = None) -> EnvMap:
@@ -111,18 +101,14 @@ def synthesize(rset: RadianceSet, view: np.ndarray, warp: str | None = None, siz
 
 
 def blend_weights_many(views: np.ndarray, triangles: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`blend_weights` for many unit views (P, 3) at once: source indices (P, 3) and weights (P, 3)."""
+    """:func:`blend_weights` for many unit views (P, 3) at once: source indices (P, 3) and weights (P, 3). Each
+    view's triangle is the one whose three triple products [v_i, v_{i+1}, v] are all ≥ 0 — the one with the largest
+    smallest product, so a view on an edge or a vertex picks one deterministically."""
     a, b, c = views[triangles[:, 0]], views[triangles[:, 1]], views[triangles[:, 2]]
     products = np.minimum(np.minimum(v @ np.cross(a, b).T, v @ np.cross(b, c).T), v @ np.cross(c, a).T)
     tri = triangles[np.argmax(products, axis=1)]
     va, vb, vc = views[tri[:, 0]], views[tri[:, 1]], views[tri[:, 2]]
-
-    def excess(x, y, z):
-        triple = np.abs(np.einsum("ij,ij->i", x, np.cross(y, z)))
-        return 2 * np.arctan2(triple, 1 + np.einsum("ij,ij->i", x, y) + np.einsum("ij,ij->i", y, z)
-                              + np.einsum("ij,ij->i", z, x))
-
-    weights = np.stack([excess(v, vb, vc), excess(va, v, vc), excess(va, vb, v)], axis=1)
+    weights = np.stack([_excess(v, vb, vc), _excess(va, v, vc), _excess(va, vb, v)], axis=1)
     return tri, weights / np.maximum(weights.sum(axis=1, keepdims=True), 1e-300)
 
 
