@@ -697,8 +697,75 @@ def section_glossy(rep: Report) -> str:
             + table(["material", "method", "relative MSE", "HDR-FLIP", "time"], rows))
 
 
+VIEWER_STATES = [  # (file name, caption, page state): what the viewer section shows, each taken from the live page
+    ("viewer-sh", "eq. 13 per pixel (Ramamoorthi & Hanrahan)", {"method": "sh"}),
+    ("viewer-sh-vertex", "eq. 13 per vertex, the paper's hardware path", {"method": "sh-vertex"}),
+    ("viewer-threejs", "three.js's own LightProbe fed the threejs export", {"method": "threejs"}),
+    ("viewer-lights", "area lights with PCSS soft shadows + ambient SH (Arbree et al.)", {"method": "lights"}),
+    ("viewer-rsibr", "RS-IBR: one map per frame synthesised on the GPU, gold GGX α 0.2", {"method": "rsibr"}),
+    ("viewer-rsibr-pixel", "RS-IBR, each pixel's own view", {"method": "rsibr-pixel"}),
+    ("viewer-splitsum", "split sum, gold GGX α 0.2", {"method": "splitsum"}),
+    ("viewer-rsibr-plastic", "RS-IBR, red plastic α 0.15", {"method": "rsibr", "brdf": 1}),
+    ("viewer-basis", "the basis function Y10 on the objects", {"method": "basis", "basis": 2}),
+    ("viewer-design", "lighting design: L1−1 ×3 and L11 ×−1 (the sliders)",
+     {"method": "sh", "design": [1, 3, 1, -1, 1, 1, 1, 1, 1]}),
+    ("viewer-rotated", "the environment turned 120° (background and lighting together)",
+     {"method": "lights", "rotation": 120}),
+]
+
+
+def section_viewer(rep: Report) -> str:
+    """``lightprobe view``: the bake exported as a static folder beside the report, opened through a plain static
+    server in headless Chromium, and a screenshot of each method and control state taken from the live page."""
+    import tempfile
+
+    from .engines import missing_engines
+    from .viewer.bake import BakeOptions, bake
+    from .viewer.page import ViewerPage
+    from .viewer.server import export_static
+
+    title = "<h2>The viewer: <code>lightprobe view</code></h2>"
+    missing = missing_engines()
+    if missing:
+        return title + f"<p>Not run here: it needs {html.escape(', '.join(missing))} (<code>bash setup.sh</code>).</p>"
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory(dir=rep.out) as temp:
+        doc = bake(rep.env, Path(temp) / "bake", None, BakeOptions(map_size=32), source=rep.probe_name)
+        export_static(Path(temp) / "bake", rep.out / "viewer")
+    rep.timings["viewer bake (SH, lights, 2 × 12 radiance maps 32², split sum) and static export"] = \
+        time.perf_counter() - t0
+    t0 = time.perf_counter()
+    figures, rows = [], []
+    with ViewerPage(site=rep.out / "viewer", width=640, height=360) as page:
+        exposure = round(rep.exposure, 1)
+        for name, caption, state in VIEWER_STATES:
+            full = {"brdf": 0, "rotation": 0, "design": [1] * 9, "exposure": exposure, **state}
+            shot = page.page.locator("#view") if name != "viewer-sh" else page.page
+            page.page.evaluate("(s) => window.lightprobe.setState(s)", full)
+            shot.screenshot(path=str(rep.out / f"{name}.png"))
+            ms = page.page.evaluate("window.lightprobe.viewer.frameMs")
+            rows.append([caption, f"{ms:.0f} ms"])
+            figures.append(figure(name, caption))
+        errors = [e for e in page.errors if "404" not in e]
+    if errors:
+        raise LightprobeError(f"the viewer's page reported an error: {errors[0].splitlines()[0]}")
+    rep.timings["viewer screenshots (headless Chromium, SwiftShader)"] = time.perf_counter() - t0
+    return (title + "<p>The page (WebGL2; three.js from npm for the scene and the loop, lightprobe's own shaders "
+            "for the lighting) with the bake of this probe — "
+            f"{doc['lights']['count']} area lights, {len(doc['brdfs'])} BRDFs × 12 radiance maps — exported by "
+            "<code>lightprobe view --export</code> into <code>viewer/</code> beside this report. Module scripts "
+            "need HTTP: serve it with <code>python3 -m http.server -d viewer</code> and open the address it prints. "
+            "Each picture below is that exported page, served by a plain static server and drawn by headless "
+            "Chromium's SwiftShader (a software rasteriser: the frame times are a floor, a GPU is far faster). "
+            "The first shows the whole page with its controls; the tests read the same page's float render "
+            "targets back and compare them with the Python renderer, three.js and "
+            "<code>lightprobe radiance --synthesize</code>.</p>"
+            + "".join(figures) + table(["state", "frame (340×360 canvas)"], rows))
+
+
 SECTIONS = [section_probe, section_layouts, section_speed, section_sh, section_irradiance, section_errors,
-            section_lights, section_design, section_exports, section_engines, section_render, section_glossy]
+            section_lights, section_design, section_exports, section_engines, section_render, section_glossy,
+            section_viewer]
 
 _STYLE = """body{font:15px/1.45 system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}
 h1{font-size:1.6em}h2{margin-top:2em;border-bottom:1px solid #ccc}table{border-collapse:collapse;margin:1em 0}

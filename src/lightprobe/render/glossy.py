@@ -178,7 +178,7 @@ class SplitSumMethod(GlossyMethod):
         i = np.minimum(x.astype(int), DFG_STEPS - 2)
         t = (x - i)[:, None]
         a_b = dfg[i] * (1 - t) + dfg[i + 1] * t
-        f0 = _normal_reflectance(brdf)
+        f0 = normal_reflectance(brdf)
         specular = f0[None, :] * a_b[:, :1] + a_b[:, 1:]
         return cube.lookup(reflect(views, normals)) * specular
 
@@ -186,7 +186,7 @@ class SplitSumMethod(GlossyMethod):
         return f"splitsum: GGX-prefiltered {self.cube_size}² cube × (F0·A + B) (Karis 2013)"
 
 
-def _normal_reflectance(brdf: GGX) -> np.ndarray:
+def normal_reflectance(brdf: GGX) -> np.ndarray:
     """F0, the material's Fresnel at normal incidence (RGB): where the engines' Schlick curve starts."""
     if isinstance(brdf.fresnel, Schlick):
         return np.asarray(brdf.fresnel.f0)

@@ -1,0 +1,287 @@
+"""What the viewer's page needs, baked by the Python API into one folder: the format ``lightprobe.view``, version 1.
+
+Every quantity keeps the convention of the module that made it; the manifest ``bake.json`` says which:
+
+* ``sh`` — the probe's nine **radiance** coefficients L_lm (world frame, real SH without the Condon–Shortley phase,
+  :mod:`lightprobe.sh`); the page forms eq. 12's matrices from them itself, so the sliders can edit L_lm.
+* ``threejs.json`` — the ``threejs`` export (:func:`lightprobe.export.export_threejs`, in the frame three.js shows
+  an equirectangular background in): what the page hands three.js's own ``LightProbe``.
+* ``lights.json`` — the area lights and ambient SH (:mod:`lightprobe.lightsfile`, world frame); ``ambient.f32`` the
+  ambient's **irradiance** E(n) (SH of :data:`AMBIENT_ORDER`) on a latlong grid indexed by the normal.
+* ``radiance-K.f32`` — BRDF K's radiance maps L_r(n; v_i) at the geodesic views (sphere layout, frames
+  :func:`lightprobe.radiance.view_frame`), **radiance**; ``prefiltered-K.f32`` the split sum's GGX-prefiltered
+  environment (radiance, latlong) with its DFG table in the manifest.
+* ``background.f32`` — the probe itself (radiance, latlong), ``mesh.glb`` — the objects (world units, fitted as the
+  renderer's scenes are) and the ground plane, and ``camera`` — the renderer's default camera for that scene.
+
+Binary arrays are little-endian float32, C order, RGB last; latlong rows run from the top (+Y) down, the world
+frame's convention (:class:`lightprobe.layouts.LatLong`). Bakes are cached by the inputs' content and options
+(:func:`cache_folder`) and written atomically: a folder there is complete or absent.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import BudgetError, UsageError
+
+FORMAT, VERSION = "lightprobe.view", 1
+AMBIENT_ORDER = 12  # as the renderer's ``lights`` method (DEFAULT_AMBIENT_ORDER)
+BACKGROUND_WIDTH = 1024
+AMBIENT_GRID = (64, 128)
+PREFILTERED_GRID = (128, 256)
+SPLITSUM_CUBE = 64  # the prefiltered cube's face, resampled into PREFILTERED_GRID (a lobe of α ≥ 0.05 spans texels)
+DEFAULT_BRDFS = ("ggx:alpha=0.2,conductor=gold", "plastic:alpha=0.15,albedo=0.6/0.05/0.04")
+# What a browser can be asked to draw (configurable): beyond these the page would stall or the tab run out of memory.
+DEFAULT_MAX_TRIANGLES = 2_000_000
+DEFAULT_MAX_PIXELS = 1 << 25  # 8192 × 4096
+
+
+@dataclass(frozen=True)
+class BakeOptions:
+    """What a bake depends on besides its input files."""
+
+    brdfs: tuple[str, ...] = DEFAULT_BRDFS
+    views: int = 12
+    map_size: int = 128
+    background_width: int = BACKGROUND_WIDTH
+    light_params: dict = field(default_factory=dict)
+
+    def key(self) -> str:
+        return json.dumps(asdict(self), sort_keys=True)
+
+
+def max_triangles() -> int:
+    from ..limits import _positive_env
+
+    return _positive_env("LIGHTPROBE_VIEW_MAX_TRIANGLES", DEFAULT_MAX_TRIANGLES)
+
+
+def max_pixels() -> int:
+    from ..limits import _positive_env
+
+    return _positive_env("LIGHTPROBE_VIEW_MAX_PIXELS", DEFAULT_MAX_PIXELS)
+
+
+def check_inputs(probe: Path, mesh: Path | None) -> None:
+    """Refuse, with one line and before any baking, a probe or mesh beyond the viewer's limits (set by
+    ``LIGHTPROBE_VIEW_MAX_PIXELS`` and ``LIGHTPROBE_VIEW_MAX_TRIANGLES``)."""
+    from ..io import image_header
+
+    header = image_header(probe)
+    if header.pixels > max_pixels():
+        raise BudgetError(f"refusing {probe} for the viewer: {header.width}×{header.height} pixels is over its limit "
+                          f"of {max_pixels()} (set LIGHTPROBE_VIEW_MAX_PIXELS to raise it)")
+    if mesh is not None:
+        triangles = mesh_triangle_count(mesh)
+        if triangles > max_triangles():
+            raise BudgetError(f"refusing mesh {mesh} for the viewer: {triangles} triangles is over its limit of "
+                              f"{max_triangles()} (set LIGHTPROBE_VIEW_MAX_TRIANGLES to raise it)")
+
+
+def mesh_triangle_count(path: Path) -> int:
+    """Triangles in a mesh file, read from its header where the format has one (PLY), else by loading it."""
+    from ..io import check_regular_file
+
+    check_regular_file(path, "mesh")
+    if path.suffix.lower() == ".ply":
+        with open(path, "rb") as f:
+            head = f.read(4096)
+        for line in head.split(b"\n"):
+            words = line.split()
+            if words[:2] == [b"element", b"face"] and len(words) == 3 and words[2].isdigit():
+                return int(words[2])
+            if words[:1] == [b"end_header"]:
+                break
+    from ..render.scene import load_mesh
+
+    return len(load_mesh(path).faces)
+
+
+def cache_folder(probe: Path, mesh: Path | None, options: BakeOptions, root: Path | None = None) -> Path:
+    """``root``/<key>: the key hashes the probe's and the mesh's bytes, the options and the format's version."""
+    digest = hashlib.sha256(f"{FORMAT} {VERSION} {options.key()}".encode())
+    for path in (probe, mesh):
+        digest.update(b"\0")
+        if path is not None:
+            with open(path, "rb") as f:
+                for block in iter(lambda: f.read(1 << 20), b""):
+                    digest.update(block)
+    root = root or Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "lightprobe" / "view"
+    return root / digest.hexdigest()[:24]
+
+
+def read_manifest(folder: Path) -> dict | None:
+    """The bake's manifest, or None when the folder holds no complete bake of this format and version."""
+    try:
+        doc = json.loads((folder / "bake.json").read_text())
+    except (OSError, ValueError):
+        return None
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT or doc.get("version") != VERSION:
+        return None
+    return doc
+
+
+# ---- the parts -----------------------------------------------------------------------------------------------------
+def _write_array(folder: Path, name: str, data: np.ndarray) -> dict:
+    data = np.ascontiguousarray(data, dtype="<f4")
+    (folder / name).write_bytes(data.tobytes())
+    return {"file": name, "shape": list(data.shape)}
+
+
+def _background(env, width: int) -> np.ndarray:
+    """The probe as a latlong of at most ``width`` × ``width``/2 (energy-conserving resampling), radiance."""
+    from ..layouts import LATLONG
+
+    if env.layout == LATLONG and env.data.shape[1] <= width:
+        return env.data
+    return env.to(LATLONG, width // 2).data
+
+
+def _latlong_directions(rows: int, cols: int) -> np.ndarray:
+    from ..layouts import LATLONG
+
+    u = (np.arange(cols) + 0.5) / cols
+    v = (np.arange(rows) + 0.5) / rows
+    uu, vv = np.meshgrid(u, v)
+    return LATLONG.uv_to_dir(0, uu, vv)
+
+
+def _scene(env, mesh: Path | None):
+    from ..render.scene import builtin_scene, mesh_scene
+
+    if mesh is None:
+        return builtin_scene(env, turn_to_key_light=False)
+    return mesh_scene(mesh, env, turn_to_key_light=False)
+
+
+def _glb(scene, path: Path) -> list[dict]:
+    """The scene's meshes as one GLB (nodes ``object-K`` and ``ground``, smooth normals), and their materials."""
+    import trimesh
+
+    out = trimesh.Scene()
+    meshes = []
+    for k, m in enumerate(scene.meshes):
+        name = "ground" if m.name.startswith("ground") else f"object-{k}"
+        out.add_geometry(trimesh.Trimesh(m.vertices, m.faces, vertex_normals=m.normals, process=False),
+                         node_name=name, geom_name=name)
+        meshes.append({"name": name, "albedo": [float(a) for a in m.material.albedo],
+                       "triangles": int(len(m.faces))})
+    path.write_bytes(out.export(file_type="glb", include_normals=True))
+    return meshes
+
+
+def _camera(scene) -> dict:
+    c = scene.camera
+    return {"eye": list(map(float, c.eye)), "target": list(map(float, c.target)), "up": list(map(float, c.up)),
+            "fov": float(c.fov), "width": c.width, "height": c.height}
+
+
+def _lights(env, folder: Path, params: dict) -> dict:
+    from ..lights import LightParams, decompose
+    from ..lightsfile import lights_json
+    from ..sh import project
+
+    dec = decompose(env, LightParams(**params) if params else None)
+    ambient = project(dec.ambient, AMBIENT_ORDER)
+    (folder / "lights.json").write_text(lights_json(dec, ambient))
+    rows, cols = AMBIENT_GRID
+    irradiance = np.maximum(ambient.to_irradiance().evaluate(_latlong_directions(rows, cols).reshape(-1, 3)), 0.0)
+    return {"file": "lights.json", "count": len(dec.lights),
+            "ambient": {**_write_array(folder, "ambient.f32", irradiance.reshape(rows, cols, 3)),
+                        "quantity": "irradiance", "order": AMBIENT_ORDER}}
+
+
+def _brdf_part(env, lighting, spec: str, index: int, options: BakeOptions, folder: Path) -> dict:
+    from ..brdf import GGX, parse_brdf
+    from ..envmap import EnvMap
+    from ..layouts import CUBE
+    from ..prefilter import prefilter_cube
+    from ..progress import track
+    from ..radiance import geodesic_views, radiance_map, view_frame
+    from ..render.glossy import dfg_terms, normal_reflectance
+
+    brdf = parse_brdf(spec)
+    views, triangles = geodesic_views(options.views)
+    t0 = time.perf_counter()
+    maps = [radiance_map(lighting, brdf, v, options.map_size).data
+            for v in track(views, f"radiance maps of {brdf.spec()}")]
+    part = {"spec": brdf.spec(), "central": brdf.central, "views": views.tolist(),
+            "triangles": triangles.tolist(), "frames": [view_frame(v).tolist() for v in views],
+            "maps": {**_write_array(folder, f"radiance-{index}.f32", np.stack(maps)), "quantity": "radiance"},
+            "seconds": {"radiance_maps": time.perf_counter() - t0}}
+    if isinstance(brdf, GGX):  # the split sum is defined for GGX (render.glossy.SplitSumMethod)
+        t0 = time.perf_counter()
+        levels = int(np.log2(SPLITSUM_CUBE)) + 1
+        cube = EnvMap(prefilter_cube(env, SPLITSUM_CUBE, [brdf.alpha] * levels).levels[0], CUBE)
+        rows, cols = PREFILTERED_GRID
+        pre = cube.lookup(_latlong_directions(rows, cols).reshape(-1, 3)).reshape(rows, cols, 3)
+        part["splitsum"] = {**_write_array(folder, f"prefiltered-{index}.f32", pre), "quantity": "radiance",
+                            "alpha": brdf.alpha, "dfg": dfg_terms(brdf.alpha).tolist(),
+                            "f0": [float(x) for x in normal_reflectance(brdf)]}
+        part["seconds"]["splitsum"] = time.perf_counter() - t0
+    return part
+
+
+def bake(env, folder: Path, mesh: Path | None = None, options: BakeOptions = BakeOptions(),
+         source: str | None = None) -> dict:
+    """Bake everything the page needs for ``env`` (and ``mesh``, or the built-in scene) into ``folder``, atomically
+    (a temporary folder beside it, renamed into place). Returns the manifest."""
+    from .. import __version__
+    from ..export import export_threejs
+    from ..radiance import prepare
+    from ..sh import project
+
+    folder = Path(folder)
+    temp = folder.parent / f".{folder.name}.tmp-{os.getpid()}"
+    shutil.rmtree(temp, ignore_errors=True)
+    temp.mkdir(parents=True)
+    try:
+        seconds = {}
+        t0 = time.perf_counter()
+        scene = _scene(env, mesh)
+        meshes = _glb(scene, temp / "mesh.glb")
+        sh = project(env, 2)
+        (temp / "threejs.json").write_text(export_threejs(sh))
+        background = _write_array(temp, "background.f32", _background(env, options.background_width))
+        seconds["scene"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        lights = _lights(env, temp, options.light_params)
+        seconds["lights"] = time.perf_counter() - t0
+        lighting = prepare(env) if options.brdfs else None
+        brdfs = [_brdf_part(env, lighting, spec, k, options, temp) for k, spec in enumerate(options.brdfs)]
+        doc = {"format": FORMAT, "version": VERSION, "lightprobe": __version__, "frame": "world",
+               "source": source, "camera": _camera(scene), "meshes": meshes, "mesh": "mesh.glb",
+               "sh": {"quantity": "radiance", "basis": "real, no Condon-Shortley phase", "frame": "world",
+                      "coefficients": sh.coeffs[:9].tolist()},
+               "threejs": "threejs.json", "background": {**background, "quantity": "radiance", "layout": "latlong"},
+               "lights": lights, "brdfs": brdfs, "seconds": seconds}
+        (temp / "bake.json").write_text(json.dumps(doc, indent=1, allow_nan=False) + "\n")
+        if folder.exists():
+            shutil.rmtree(folder)
+        temp.rename(folder)
+    except BaseException:
+        shutil.rmtree(temp, ignore_errors=True)
+        raise
+    return doc
+
+
+def check_brdfs(specs) -> tuple[str, ...]:
+    """The BRDF specs, each parsed once so a bad one is refused before any work."""
+    from ..brdf import parse_brdf
+
+    out = []
+    for spec in specs:
+        parse_brdf(spec)
+        out.append(spec)
+    if len(out) > 8:
+        raise UsageError(f"the viewer takes at most 8 BRDFs, got {len(out)}")
+    return tuple(out)
