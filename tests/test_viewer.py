@@ -144,6 +144,29 @@ def test_gpu_synthesised_radiance_map_equals_radiance_synthesize(page, baked, tm
         print(f"  every 4th texel: {np.mean(np.abs(coarse[valid] - python[valid]).sum(-1)) / np.mean(python[valid].sum(-1)):.4%}")
 
 
+@pytest.mark.parametrize("name, options, tolerance", [
+    ("rsibr", {"views": 12, "map_size": 48}, 0.02),
+    ("rsibr-pixel", {"views": 12, "map_size": 48, "per_pixel_view": True}, 0.02),
+    ("splitsum", {}, 0.05)])
+def test_glossy_methods_in_webgl_equal_the_python_renderer(page, scene, name, options, tolerance):
+    """The bunny in gold alone (no ground): the page's method against lightprobe.render's of the same name."""
+    from dataclasses import replace
+
+    from lightprobe.brdf import parse_brdf
+    from lightprobe.render.methods import method
+    from lightprobe.render.renderer import render
+    from lightprobe.render.scene import Material
+
+    gold = replace(scene, meshes=tuple(replace(m, material=Material(brdf=parse_brdf(BRDF))) for m in scene.meshes
+                                       if m.name != "ground"))
+    python = render(gold, method("splitsum" if name == "splitsum" else "rsibr", **options))
+    gpu = page.render(name, width=SIZE, height=SIZE, ground=False)
+    where = interior(gpu[..., 3]) & (python.coverage == 1)
+    err = mean_relative(gpu[..., :3], python.image, where)
+    print(f"{name}: WebGL vs Python mean relative error {err:.3%} over {where.sum()} px")
+    assert where.sum() > 0.15 * SIZE * SIZE and err < tolerance
+
+
 def test_glossy_methods_draw_the_material(page):
     for method in ("rsibr", "rsibr-pixel", "splitsum"):
         img = page.render(method, width=64, height=64)

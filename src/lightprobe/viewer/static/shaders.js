@@ -147,7 +147,7 @@ varying vec3 vVertexE;
 // E = L π sin²r max(n·d, 0); a shadow map per light (an atlas tile) holding the occluders' height along d gives the
 // visible fraction by PCSS: blockers searched over the disc the cap covers at the tallest occluder, the penumbra
 // from their mean height, then percentage-closer filtering over it.
-#define MAX_LIGHTS 16
+#define MAX_LIGHTS 32  // the first 16 shadowed (atlas tiles), the rest unshadowed
 uniform int lightCount;
 uniform vec3 lightDir[MAX_LIGHTS];
 uniform vec3 lightRadiance[MAX_LIGHTS];
@@ -212,6 +212,7 @@ uniform mat3 synthFrame;
 #ifdef RSIBR_PIXEL
 uniform vec3 views[VIEWS];
 uniform ivec3 triangles[TRIANGLES];
+uniform vec3 edges[3 * TRIANGLES];  // a×b, b×c, c×a of each triangle: v is inside where all three v·(…) ≥ 0
 float excess(vec3 a, vec3 b, vec3 c) {  // Van Oosterom & Strackee
   return 2.0 * atan(abs(dot(a, cross(b, c))), 1.0 + dot(a, b) + dot(b, c) + dot(c, a));
 }
@@ -219,8 +220,7 @@ vec3 rsibrPerPixel(vec3 n, vec3 v) {
   vec3 central = mirrorWarp ? 2.0 * dot(n, v) * n - v : n;
   float best = -1e30; ivec3 tri = triangles[0];
   for (int i = 0; i < TRIANGLES; i++) {
-    vec3 a = views[triangles[i].x], b = views[triangles[i].y], c = views[triangles[i].z];
-    float m = min(min(dot(v, cross(a, b)), dot(v, cross(b, c))), dot(v, cross(c, a)));
+    float m = min(min(dot(v, edges[3 * i]), dot(v, edges[3 * i + 1])), dot(v, edges[3 * i + 2]));
     if (m > best) { best = m; tri = triangles[i]; }
   }
   vec3 va = views[tri.x], vb = views[tri.y], vc = views[tri.z];

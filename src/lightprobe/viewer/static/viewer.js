@@ -20,7 +20,8 @@ const METHODS = {
 const GLOSSY = new Set(["rsibr", "rsibr-pixel", "splitsum"]);
 const SH_NAMES = ["Y00", "Y1−1", "Y10", "Y11", "Y2−2", "Y2−1", "Y20", "Y21", "Y22"];
 const TONEMAPS = { aces: 0, reinhard: 1, linear: 2 };
-const ATLAS = 2048, TILES = 4;  // the shadow atlas: 4 × 4 tiles of 512², one per light
+const ATLAS = 2048, TILES = 4;  // the shadow atlas: 4 × 4 tiles of 512², one per shadowed light
+const MAX_LIGHTS = 32;  // as the shader's
 // three.js shows an equirectangular background with its centre at +X: the same light sits at (−z, y, x) of
 // lightprobe's world (lightprobe.frames.THREEJS), the frame its threejs export is stated in.
 const TO_THREEJS = new THREE.Matrix4().set(0, 0, -1, 0, 0, 1, 0, 0, 1, 0, 0, 0, 0, 0, 0, 1);
@@ -252,6 +253,9 @@ class Viewer {
         defines.VIEWS = brdf.part.views.length; defines.TRIANGLES = brdf.part.triangles.length;
         uniforms.views = { value: new Float32Array(brdf.part.views.flat()) };
         uniforms.triangles = { value: new Int32Array(brdf.part.triangles.flat()) };
+        const V = brdf.part.views.map((a) => new THREE.Vector3(...a));
+        uniforms.edges = { value: new Float32Array(brdf.part.triangles.flatMap(([a, b, c]) =>
+          [[a, b], [b, c], [c, a]].flatMap(([i, j]) => new THREE.Vector3().crossVectors(V[i], V[j]).toArray()))) };
       }
       if (method === "splitsum") {
         if (!brdf.part.splitsum) throw new Error(`splitsum is defined for GGX, not ${brdf.part.spec}`);
@@ -284,8 +288,10 @@ class Viewer {
   // ---- lights and their shadow maps ---------------------------------------------------------------------------------
   setupLights() {
     const lights = this.lightsDoc.lights;
-    this.lightCount = Math.min(lights.length, 16);
-    const n = 16;
+    // Up to MAX_LIGHTS lights shade (a decomposition rarely finds more); the first TILES² cast shadows, the rest
+    // (the faintest: the lights come brightest first) light unshadowed.
+    const n = MAX_LIGHTS;
+    this.lightCount = Math.min(lights.length, n);
     this.lightUniforms = {
       lightCount: { value: this.lightCount },
       lightDir: { value: new Float32Array(3 * n) }, lightRadiance: { value: new Float32Array(3 * n) },
@@ -300,8 +306,8 @@ class Viewer {
       u.lightDir.value.set(l.direction, 3 * k);
       u.lightRadiance.value.set(l.radiance, 3 * k);
       u.lightRadius.value[k] = l.angular_radius_deg * Math.PI / 180;
-      u.lightShadowed.value[k] = 1;
-      u.lightTile.value.set([(k % TILES) / TILES, Math.floor(k / TILES) / TILES, 1 / TILES, 1 / TILES], 4 * k);
+      u.lightShadowed.value[k] = k < TILES * TILES ? 1 : 0;
+      if (k < TILES * TILES) u.lightTile.value.set([(k % TILES) / TILES, Math.floor(k / TILES) / TILES, 1 / TILES, 1 / TILES], 4 * k);
     });
     const reach = this.bounds.center.length() + this.bounds.radius + 1;
     u.heightLow.value = -reach; u.heightRange.value = 2 * reach;
@@ -326,7 +332,7 @@ class Viewer {
     r3.clear(true, true);
     const ground = this.meshes.filter((m) => m.userData.ground);
     ground.forEach((m) => { m.visible = false; });
-    for (let k = 0; k < this.lightCount; k++) {
+    for (let k = 0; k < Math.min(this.lightCount, TILES * TILES); k++) {
       const d = new THREE.Vector3(...this.lightsDoc.lights[k].direction).applyMatrix3(R).normalize();
       const cam = new THREE.OrthographicCamera(-e / 2, e / 2, e / 2, -e / 2, 0.01, 4 * r + 1);
       cam.up.copy(Math.abs(d.y) < 0.99 ? new THREE.Vector3(0, 1, 0) : new THREE.Vector3(0, 0, -1));
@@ -638,7 +644,8 @@ window.lightprobe = {
   // up, fov}, width, height, background, rotation, design, shadows}.
   render(options) {
     const st = viewer.state, saved = { ...st, design: st.design.slice() };
-    Object.assign(st, { background: false, rotation: 0, design: new Array(9).fill(1), shadows: true, ...options });
+    Object.assign(st, { background: false, rotation: 0, design: new Array(9).fill(1), shadows: true, ground: true,
+      ...options });
     viewer.updateCoefficients();
     const c = { ...viewer.bake.camera, ...(options.camera || {}) };
     const cam = new THREE.PerspectiveCamera(c.fov, options.width / options.height, 0.01, 200);
@@ -649,7 +656,7 @@ window.lightprobe = {
     viewer.renderHDR(target, cam);
     const out = read(viewer.renderer, target);
     target.dispose();
-    Object.assign(viewer.state, saved);
+    viewer.state = saved;
     delete viewer.state.cameraTarget;
     viewer.updateCoefficients();
     return out;
@@ -667,7 +674,7 @@ window.lightprobe = {
     viewer.canvas.parentElement.style.flex = "none";
     const times = [];
     for (let i = 0; i < frames + 1; i++) { viewer.drawToCanvas(); if (i) times.push(viewer.frameMs); }
-    Object.assign(viewer.state, saved);
+    viewer.state = saved;
     times.sort((a, b) => a - b);
     return times[Math.floor(times.length / 2)];
   },
