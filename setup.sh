@@ -9,9 +9,9 @@
 set -euo pipefail
 cd "$(dirname "$0")"
 
-extras="[reference,engines]"
+extras="[reference,engines,dask]"
 testing=""
-[ "${1:-}" = "--test" ] && extras="[test,reference,engines]" && testing=1
+[ "${1:-}" = "--test" ] && extras="[test,reference,engines,dask]" && testing=1
 
 python3 -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else 1)' || {
   echo "setup.sh: lightprobe needs Python 3.11 or newer as python3" >&2; exit 2; }

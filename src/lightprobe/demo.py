@@ -702,15 +702,12 @@ VIEWER_STATES = [  # (file name, caption, page state): what the viewer section s
     ("viewer-sh-vertex", "eq. 13 per vertex, the paper's hardware path", {"method": "sh-vertex"}),
     ("viewer-threejs", "three.js's own LightProbe fed the threejs export", {"method": "threejs"}),
     ("viewer-lights", "area lights with PCSS soft shadows + ambient SH (Arbree et al.)", {"method": "lights"}),
-    ("viewer-rsibr", "RS-IBR: one map per frame synthesised on the GPU, gold GGX α 0.2", {"method": "rsibr"}),
+    ("viewer-rsibr", "RS-IBR: one map per frame synthesised on the GPU, gold GGX α 0.3", {"method": "rsibr"}),
     ("viewer-rsibr-pixel", "RS-IBR, each pixel's own view", {"method": "rsibr-pixel"}),
-    ("viewer-splitsum", "split sum, gold GGX α 0.2", {"method": "splitsum"}),
-    ("viewer-rsibr-plastic", "RS-IBR, red plastic α 0.15", {"method": "rsibr", "brdf": 1}),
+    ("viewer-splitsum", "split sum, gold GGX α 0.3", {"method": "splitsum"}),
     ("viewer-basis", "the basis function Y10 on the objects", {"method": "basis", "basis": 2}),
-    ("viewer-design", "lighting design: L1−1 ×3 and L11 ×−1 (the sliders)",
-     {"method": "sh", "design": [1, 3, 1, -1, 1, 1, 1, 1, 1]}),
-    ("viewer-rotated", "the environment turned 120° (background and lighting together)",
-     {"method": "lights", "rotation": 120}),
+    ("viewer-design", "lighting design: L1−1 ×3 and L11 ×−1 (the sliders), the environment turned 120°",
+     {"method": "sh", "design": [1, 3, 1, -1, 1, 1, 1, 1, 1], "rotation": 120}),
 ]
 
 
@@ -730,13 +727,14 @@ def section_viewer(rep: Report) -> str:
         return title + f"<p>Not run here: it needs {html.escape(', '.join(missing))} (<code>bash setup.sh</code>).</p>"
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(dir=rep.out) as temp:
-        doc = bake(rep.env, Path(temp) / "bake", None, BakeOptions(map_size=32), source=rep.probe_name)
+        doc = bake(rep.env, Path(temp) / "bake", None, BakeOptions(brdfs=(GLOSSY_DEMO[0],), map_size=32),
+                   source=rep.probe_name)
         export_static(Path(temp) / "bake", rep.out / "viewer")
-    rep.timings["viewer bake (SH, lights, 2 × 12 radiance maps 32², split sum) and static export"] = \
+    rep.timings["viewer bake (SH, lights, 12 radiance maps 32², split sum) and static export"] = \
         time.perf_counter() - t0
     t0 = time.perf_counter()
     figures, rows = [], []
-    with ViewerPage(site=rep.out / "viewer", width=640, height=360) as page:
+    with ViewerPage(site=rep.out / "viewer", width=600, height=330) as page:
         exposure = round(rep.exposure, 1)
         for name, caption, state in VIEWER_STATES:
             full = {"brdf": 0, "rotation": 0, "design": [1] * 9, "exposure": exposure, **state}
@@ -752,7 +750,7 @@ def section_viewer(rep: Report) -> str:
     rep.timings["viewer screenshots (headless Chromium, SwiftShader)"] = time.perf_counter() - t0
     return (title + "<p>The page (WebGL2; three.js from npm for the scene and the loop, lightprobe's own shaders "
             "for the lighting) with the bake of this probe — "
-            f"{doc['lights']['count']} area lights, {len(doc['brdfs'])} BRDFs × 12 radiance maps — exported by "
+            f"{doc['lights']['count']} area lights, 12 radiance maps of {html.escape(doc['brdfs'][0]['spec'])} — exported by "
             "<code>lightprobe view --export</code> into <code>viewer/</code> beside this report. Module scripts "
             "need HTTP: serve it with <code>python3 -m http.server -d viewer</code> and open the address it prints. "
             "Each picture below is that exported page, served by a plain static server and drawn by headless "
@@ -760,12 +758,54 @@ def section_viewer(rep: Report) -> str:
             "The first shows the whole page with its controls; the tests read the same page's float render "
             "targets back and compare them with the Python renderer, three.js and "
             "<code>lightprobe radiance --synthesize</code>.</p>"
-            + "".join(figures) + table(["state", "frame (340×360 canvas)"], rows))
+            + "".join(figures) + table(["state", "frame (300×330 canvas)"], rows))
+
+
+def _demo_probes(rep: Report, folder: Path) -> tuple[list[str], str]:
+    """Every probe file of ../shared/data beside the repository, or (without it) the shipped probe and seven
+    rotated copies of it written into ``folder``."""
+    shared = Path(os.environ.get("LIGHTPROBE_SHARED_DATA", Path(__file__).resolve().parents[3] / "shared" / "data"))
+    found = sorted(str(p) for sub in ("debevec", "ict_lowres", "polyhaven_1k") for p in (shared / sub).rglob("*")
+                   if p.suffix.lower() in (".hdr", ".exr") and p.is_file())
+    if found:
+        return found, f"every probe in {shared} ({len(found)} files)"
+    paths = []
+    for k in range(8):
+        path = folder / f"shipped_turned_{45 * k:03d}.exr"
+        (rep.env if k == 0 else rep.env.rotated((45.0 * k, 0.0, 0.0))).save(path)
+        paths.append(str(path))
+    return paths, "the shipped probe and seven copies turned by 45° steps (../shared/data is not here)"
+
+
+def section_batch(rep: Report) -> str:
+    """``lightprobe batch`` over the test probes: SH and a thumbnail each, on a local pool of the machine's cores,
+    into ``batch/`` beside the report (results.parquet, errors.parquet, report.html)."""
+    import tempfile
+
+    from .batch.report import write_report
+    from .batch.runner import LocalPool, run_batch
+    from .batch.task import JobOptions
+
+    with tempfile.TemporaryDirectory(dir=rep.out) as temp:
+        inputs, what = _demo_probes(rep, Path(temp))
+        pool = LocalPool(os.cpu_count() or 1)
+        summary = run_batch(inputs, rep.out / "batch", JobOptions(jobs=("sh", "thumbnail"), order=2), pool)
+    write_report(rep.out / "batch")
+    rep.timings[f"batch of {len(inputs)} probes (SH + thumbnail, {summary.workers} workers)"] = summary.seconds
+    rows = [["inputs", what], ["done / failed", f"{summary.done} / {summary.failed}"],
+            ["throughput", f"{summary.throughput:.2f} maps/s on {summary.workers} worker processes "
+                           f"(start-up included)"],
+            ["peak memory per worker", f"{summary.peak_rss / 2**20:.0f} MiB"]]
+    return ("<h2>Dataset scale: <code>lightprobe batch</code></h2><p>The same API calls as the single-file "
+            "commands, one row per input in <a href='batch/results.parquet'>batch/results.parquet</a> (pandas, "
+            "polars and DuckDB read it directly), failures in <code>batch/errors.parquet</code>, committed in chunks "
+            "so a killed run resumes with <code>--resume</code>; the batch's own page is "
+            "<a href='batch/report.html'>batch/report.html</a>.</p>" + table(["", ""], rows))
 
 
 SECTIONS = [section_probe, section_layouts, section_speed, section_sh, section_irradiance, section_errors,
             section_lights, section_design, section_exports, section_engines, section_render, section_glossy,
-            section_viewer]
+            section_viewer, section_batch]
 
 _STYLE = """body{font:15px/1.45 system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}
 h1{font-size:1.6em}h2{margin-top:2em;border-bottom:1px solid #ccc}table{border-collapse:collapse;margin:1em 0}

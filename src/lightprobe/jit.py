@@ -27,8 +27,16 @@ def use_threads() -> None:
 
 
 def worth_compiling(work: int) -> bool:
-    """Take a compiled kernel over its numpy formulation: numba is already loaded in this process (a batch, a
-    long session), or ``work`` is big enough to repay loading it. A CLI run on a 2k map stays on numpy."""
+    """Take a compiled kernel over its numpy formulation: numba is already loaded in this process (a long session),
+    or ``work`` is big enough to repay loading it. A CLI run on a 2k map stays on numpy.
+
+    The two formulations agree to the last few bits, not bit for bit; with ``LIGHTPROBE_COMPILE=by-work`` (set by
+    ``lightprobe batch``'s workers) the choice depends on ``work`` alone, as in a fresh CLI process, so a result
+    does not depend on what the process did before."""
+    import os
+
+    if os.environ.get("LIGHTPROBE_COMPILE") == "by-work":
+        return work >= COMPILE_WORTH
     return "numba" in sys.modules or work >= COMPILE_WORTH
 
 

@@ -18,10 +18,10 @@ import sys
 import warnings
 
 from ..errors import LightprobeError
-from . import compare, convert, demo, design, error, export, info, irradiance, lights, radiance, render, sh, view
+from . import batch, compare, convert, demo, design, error, export, info, irradiance, lights, radiance, render, sh, view
 from .common import Parser
 
-COMMANDS = [info, convert, sh, irradiance, lights, radiance, error, export, design, render, compare, view, demo]
+COMMANDS = [info, convert, sh, irradiance, lights, radiance, error, export, design, render, compare, view, batch, demo]
 
 
 def build_parser() -> Parser:

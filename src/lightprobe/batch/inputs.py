@@ -1,0 +1,56 @@
+"""The batch's inputs: files, shell globs (``**`` recursive), or text files listing one path per line (``@list``
+or any ``.txt``/``.lst`` file), expanded into absolute paths in a stable order, each once."""
+
+from __future__ import annotations
+
+import glob
+import os
+from pathlib import Path
+
+from ..errors import UsageError
+
+LIST_SUFFIXES = (".txt", ".lst", ".list")
+MAX_INPUTS = 10_000_000
+
+
+def _from_list(path: Path) -> list[str]:
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as e:
+        raise UsageError(f"cannot read the list of inputs {path}: {getattr(e, 'strerror', None) or e}") from None
+    base = path.parent
+    lines = [line.strip() for line in text.splitlines()]
+    return [str(Path(line) if Path(line).is_absolute() else base / line) for line in lines
+            if line and not line.startswith("#")]
+
+
+def expand_inputs(items: list[str]) -> list[str]:
+    """Absolute paths of every input, in the order given (globs sorted), duplicates dropped. A glob that matches
+    nothing, or an empty list, is refused with one line; a named file that does not exist is kept (the batch
+    records its error)."""
+    out: list[str] = []
+    for item in items:
+        if item.startswith("@") or (Path(item).suffix.lower() in LIST_SUFFIXES and Path(item).is_file()):
+            listed = _from_list(Path(item.lstrip("@")))
+            if not listed:
+                raise UsageError(f"the list of inputs {item.lstrip('@')} names no file")
+            out += listed
+        elif glob.has_magic(item):
+            matches = sorted(glob.glob(item, recursive=True))
+            matches = [m for m in matches if Path(m).is_file()]
+            if not matches:
+                raise UsageError(f"no file matches {item!r}")
+            out += matches
+        else:
+            out.append(item)
+    if not out:
+        raise UsageError("no inputs: give files, globs or a list of paths")
+    seen, unique = set(), []
+    for p in out:
+        a = os.path.abspath(p)
+        if a not in seen:
+            seen.add(a)
+            unique.append(a)
+    if len(unique) > MAX_INPUTS:
+        raise UsageError(f"{len(unique)} inputs is over the limit of {MAX_INPUTS} per batch")
+    return unique

@@ -1,0 +1,293 @@
+"""The batch driver: inputs → workers (a local process pool, or Dask distributed) → committed Parquet parts.
+
+Exactly-once: a result counts only once its part file is renamed into ``parts/`` (see :mod:`.table`); the driver
+commits every ``chunk_rows`` results or ``chunk_seconds``, whichever comes first. Killed at any moment, a rerun with
+``--resume`` reads the committed parts, skips every path (and every content hash) they hold, and redoes the rest —
+an input whose result was in flight or not yet committed is redone, never counted twice; artifacts are written
+atomically by the workers, so a redone one replaces an identical file. The same task function
+(:func:`lightprobe.batch.task.process`) runs under both executors. A worker that dies mid-task (killed, crashed)
+costs the pool, not the batch: the local pool is restarted and its unfinished inputs resubmitted, and an input that
+was in flight at :data:`MAX_ATTEMPTS` deaths is recorded as an error (``WorkerDied``) rather than retried forever.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..errors import UsageError
+from .table import Parts, consolidate, done_keys, manifest, read_manifest, write_manifest
+from .task import JobOptions, process
+
+MAX_ATTEMPTS = 3
+WORKER_ENVIRONMENT = {"OPENBLAS_NUM_THREADS": "1", "LIGHTPROBE_THREADS": "1", "LIGHTPROBE_PROGRESS": "0"}
+CHUNK_ROWS, CHUNK_SECONDS = 64, 5.0
+DASK_TIMEOUT = 10.0
+
+
+@dataclass
+class Summary:
+    total: int = 0          # inputs given
+    already: int = 0        # already in the table from an earlier run (--resume)
+    done: int = 0           # rows added by this run
+    skipped: int = 0        # content already in the table (another path with the same bytes)
+    failed: int = 0         # errors recorded by this run
+    seconds: float = 0.0
+    peak_rss: int = 0       # the largest peak resident memory any worker reported (bytes)
+    rows: int = 0           # rows in results.parquet after consolidation
+    errors: int = 0
+    workers: int = 0
+    executor: str = ""
+    timings: dict = field(default_factory=dict)
+
+    @property
+    def throughput(self) -> float:
+        return (self.done + self.failed) / self.seconds if self.seconds > 0 else 0.0
+
+
+# ---- executors ----------------------------------------------------------------------------------------------------
+_SKIP: frozenset = frozenset()
+
+
+def _die_with_the_driver() -> None:
+    """A worker outlives nothing: on Linux the kernel kills it when its parent dies (PR_SET_PDEATHSIG); elsewhere a
+    thread watches for the parent to change."""
+    import threading
+
+    parent = os.getppid()
+    try:
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+    if os.getppid() != parent:  # the parent died before the call above took effect
+        os._exit(1)
+
+    def watch():
+        while os.getppid() == parent:
+            time.sleep(1.0)
+        os._exit(1)
+
+    threading.Thread(target=watch, daemon=True).start()
+
+
+def _init_worker(skip: frozenset) -> None:
+    global _SKIP
+    _die_with_the_driver()
+    _SKIP = skip
+
+
+def _local_task(path: str, options: JobOptions, out: str) -> dict:
+    return process(path, options, out, _SKIP)
+
+
+def _died(path: str) -> dict:
+    return {"kind": "error", "path": path, "sha256": None, "size": None, "error_class": "WorkerDied",
+            "message": f"the worker processing {path} died {MAX_ATTEMPTS} times (killed or crashed)", "worker": None}
+
+
+class LocalPool:
+    """``workers`` processes of this machine (spawned: fresh interpreters, nothing inherited)."""
+
+    name = "local process pool"
+
+    def __init__(self, workers: int):
+        self.workers = workers
+
+    def results(self, paths: list[str], options: JobOptions, out: Path, skip: frozenset):
+        import multiprocessing
+
+        pending, attempts = deque(paths), {}
+        context = multiprocessing.get_context("spawn")
+        # Set before the workers start (they start as tasks are submitted, and again after a pool dies), not in
+        # their initializer: numpy loads OpenBLAS, sizing its thread pool, as a worker unpickles its task. One BLAS
+        # and one kernel thread each, as the CLI runs, keeps results identical. The driver's own environment is
+        # given back when the batch ends.
+        saved = {k: os.environ.get(k) for k in WORKER_ENVIRONMENT}
+        os.environ.update(WORKER_ENVIRONMENT)
+        try:
+            yield from self._results(pending, attempts, context, options, out, skip)
+        finally:
+            for k, v in saved.items():
+                if v is None:
+                    os.environ.pop(k, None)
+                else:
+                    os.environ[k] = v
+
+    def _results(self, pending, attempts, context, options, out, skip):
+        from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+        from concurrent.futures.process import BrokenProcessPool
+
+        while pending:
+            pool = ProcessPoolExecutor(self.workers, mp_context=context, initializer=_init_worker, initargs=(skip,))
+            in_flight: dict = {}
+            broken = False
+            try:
+                while (pending or in_flight) and not broken:
+                    while pending and len(in_flight) < 2 * self.workers:
+                        path = pending.popleft()
+                        in_flight[pool.submit(_local_task, path, options, str(out))] = path
+                    finished, _ = wait(in_flight, return_when=FIRST_COMPLETED)
+                    for future in finished:
+                        try:
+                            result = future.result()
+                        except BrokenProcessPool:
+                            broken = True
+                            continue
+                        del in_flight[future]
+                        yield result
+            finally:
+                pool.shutdown(wait=not broken, cancel_futures=True)
+            for path in in_flight.values():  # the pool died: what was in it goes back (the culprit among them)
+                attempts[path] = attempts.get(path, 0) + 1
+                if attempts[path] >= MAX_ATTEMPTS:
+                    yield _died(path)
+                else:
+                    pending.appendleft(path)
+
+    def close(self) -> None:
+        pass
+
+
+class DaskPool:
+    """Dask distributed: an existing scheduler, or a ``LocalCluster`` of ``local`` single-threaded worker processes on
+    loopback. Workers read their inputs themselves; only paths go out and rows come back."""
+
+    name = "Dask distributed"
+
+    def __init__(self, scheduler: str | None = None, local: int | None = None, timeout: float = DASK_TIMEOUT):
+        try:
+            from dask.distributed import Client, LocalCluster
+        except ImportError:
+            raise UsageError("--scheduler and --dask-local need dask.distributed: run 'bash setup.sh'") from None
+        import logging
+
+        self.cluster = None
+        if local:
+            self.cluster = LocalCluster(n_workers=local, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                        dashboard_address=None, silence_logs=logging.ERROR, env=WORKER_ENVIRONMENT)
+            scheduler = self.cluster.scheduler_address
+        try:
+            self.client = Client(scheduler, timeout=f"{timeout}s")
+        except (OSError, TimeoutError, ValueError) as e:
+            self.close()
+            raise UsageError(f"cannot reach the Dask scheduler at {scheduler} within {timeout:g} s: "
+                             f"{' '.join(str(e).split())[:200] or type(e).__name__}") from None
+        self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
+
+    def results(self, paths: list[str], options: JobOptions, out: Path, skip: frozenset):
+        from dask.distributed import as_completed
+
+        skip_future = self.client.scatter([skip], broadcast=True)[0]  # one object, not one per hash
+        todo = deque(paths)
+        window = 4 * self.workers
+
+        def submit():
+            path = todo.popleft()
+            return self.client.submit(process, path, options, str(out), skip_future, pure=False), path
+
+        futures = dict(submit() for _ in range(min(window, len(todo))))
+        queue = as_completed(list(futures))
+        for future in queue:
+            path = futures.pop(future)
+            try:
+                result = future.result()
+            except Exception:  # noqa: BLE001 - KilledWorker after Dask's own retries, or a lost worker
+                result = _died(path)
+            yield result
+            if todo:
+                new, p = submit()
+                futures[new] = p
+                queue.add(new)
+
+    def close(self) -> None:
+        for obj in (getattr(self, "client", None), self.cluster):
+            if obj is not None:
+                try:
+                    obj.close()
+                except Exception:  # noqa: BLE001 - closing is best effort
+                    pass
+
+
+# ---- the driver -----------------------------------------------------------------------------------------------------
+def check_out(out: Path, options: JobOptions, resume: bool, force: bool) -> dict:
+    """Refuse an unusable ``--out`` before any work: not a folder, not writable, a batch there without
+    ``--resume``, or ``--resume`` on a batch of another lightprobe version (unless ``force``) or other options."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"--out {out} is a file, not a folder")
+    existing = read_manifest(out) if out.is_dir() else None
+    wanted = manifest(options.as_dict())
+    if existing is not None and not resume:
+        raise UsageError(f"{out} holds a batch already: --resume to continue it, or give another --out")
+    if existing is None and out.is_dir() and any(p.name not in ("parts", "maps") for p in out.iterdir()):
+        raise UsageError(f"{out} is not empty and holds no batch: give a new or empty folder")
+    if existing is not None:
+        for key in ("version", "schema_version", "lightprobe"):
+            if existing.get(key) != wanted[key] and not force:
+                raise UsageError(f"{out} was written by lightprobe {existing.get('lightprobe')} (batch format "
+                                 f"{existing.get('version')}, schema {existing.get('schema_version')}); this is "
+                                 f"lightprobe {wanted['lightprobe']}: --force to resume it anyway")
+        if existing.get("options") != wanted["options"]:
+            raise UsageError(f"{out} was made with other options ({existing.get('options')}): resume it with those")
+    nearest = out
+    while not nearest.exists() and nearest != nearest.parent:
+        nearest = nearest.parent
+    if not nearest.is_dir() or not os.access(nearest, os.W_OK | os.X_OK):
+        raise UsageError(f"cannot write into --out {out}: {nearest} is not a writable folder")
+    return existing or wanted
+
+
+def run_batch(inputs: list[str], out: Path, options: JobOptions, executor, resume: bool = False,
+              force: bool = False, chunk_rows: int = CHUNK_ROWS, chunk_seconds: float = CHUNK_SECONDS,
+              progress=None) -> Summary:
+    """Process ``inputs`` into ``out`` with ``executor`` (a :class:`LocalPool` or :class:`DaskPool`); returns the
+    summary. ``progress(summary)`` is called after every result."""
+    out = Path(out)
+    doc = check_out(out, options, resume, force)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise UsageError(f"cannot write into --out {out}: {e.strerror or e}") from None
+    write_manifest(out, {**doc, **{k: v for k, v in manifest(options.as_dict()).items() if k != "options"}})
+    parts = Parts(out, options.order if "sh" in options.jobs else None)
+    done_paths, done_hashes = done_keys(parts)
+    todo = [p for p in inputs if p not in done_paths]
+    summary = Summary(total=len(inputs), already=len(inputs) - len(todo), workers=executor.workers,
+                      executor=executor.name)
+    t0 = time.perf_counter()
+    rows, errors, last_commit = [], [], time.perf_counter()
+
+    def commit():
+        nonlocal rows, errors, last_commit
+        parts.commit("rows", rows)
+        parts.commit("errors", errors)
+        rows, errors, last_commit = [], [], time.perf_counter()
+
+    for result in executor.results(todo, options, out, frozenset(done_hashes)):
+        kind = result.pop("kind")
+        if kind == "row":
+            rows.append(result)
+            summary.done += 1
+            summary.peak_rss = max(summary.peak_rss, result.get("peak_rss") or 0)
+        elif kind == "error":
+            from .. import __version__
+
+            errors.append({**result, "lightprobe_version": __version__})
+            summary.failed += 1
+        else:
+            summary.skipped += 1
+        summary.seconds = time.perf_counter() - t0
+        if len(rows) + len(errors) >= chunk_rows or time.perf_counter() - last_commit >= chunk_seconds:
+            commit()
+        if progress is not None:
+            progress(summary)
+    commit()
+    summary.seconds = time.perf_counter() - t0
+    summary.rows, summary.errors = consolidate(out, parts)
+    return summary

@@ -1,0 +1,181 @@
+"""The batch's table: a versioned Parquet schema, part files committed by rename, a manifest, and consolidation.
+
+Layout of ``OUT``::
+
+    batch.json                 manifest: format lightprobe.batch, version, schema version, lightprobe version, options
+    parts/rows-NNNNNN-<id>.parquet, parts/errors-NNNNNN-<id>.parquet
+                               the committed chunks: each written to a temporary name and renamed (the commit)
+    results.parquet            every input's row, once (made from the parts at the end of each run)
+    errors.parquet             every failed input, once
+    maps/<sha[:2]>/<sha>/      artifacts (lights.json, irradiance.exr, thumbnail.png, radiance/)
+
+``results.parquet`` columns (schema version 1): ``path`` (absolute), ``sha256``, ``size`` (bytes), ``layout``,
+``width``, ``height``, ``integral`` (∫L dω per channel, radiance × sr, fixed-size list of 3), ``sh`` (radiance SH
+L_lm, world frame, real basis without Condon–Shortley phase, flat l(l+1)+m × RGB: a fixed-size list of
+3(order + 1)² float64; the order is in the schema metadata ``lightprobe.sh_order`` and in ``sh_order``),
+``light_count``, ``lights`` (list of structs: direction (world, unit), angular_radius_deg, solid_angle_sr, power,
+radiance), ``lights_json``/``irradiance``/``radiance``/``thumbnail`` (artifact paths relative to ``OUT``),
+``timings`` (seconds per job), ``seconds``, ``peak_rss`` (the worker's peak resident bytes so far), ``worker``,
+``warnings``, ``lightprobe_version``. ``errors.parquet``: ``path``, ``sha256`` and ``size`` (null when unreadable),
+``error_class``, ``message`` (one line), ``worker``, ``lightprobe_version``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import secrets
+from pathlib import Path
+
+from ..errors import UsageError
+
+FORMAT, VERSION, SCHEMA_VERSION = "lightprobe.batch", 1, 1
+JOB_NAMES = ("read", "sh", "lights", "irradiance", "radiance", "thumbnail")
+
+
+def _pa():
+    try:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+    except ImportError:
+        raise UsageError("lightprobe batch needs pyarrow: run 'bash setup.sh'") from None
+    return pa, pq
+
+
+def row_schema(order: int | None):
+    pa, _ = _pa()
+    vec3 = pa.list_(pa.float64(), 3)
+    light = pa.struct([("direction", vec3), ("angular_radius_deg", pa.float64()), ("solid_angle_sr", pa.float64()),
+                       ("power", vec3), ("radiance", vec3)])
+    sh_width = 3 * (order + 1) ** 2 if order is not None else 0
+    fields = [
+        ("path", pa.string()), ("sha256", pa.string()), ("size", pa.int64()), ("layout", pa.string()),
+        ("width", pa.int32()), ("height", pa.int32()), ("integral", vec3),
+        ("sh", pa.list_(pa.float64(), sh_width) if sh_width else pa.list_(pa.float64())), ("sh_order", pa.int32()),
+        ("light_count", pa.int32()), ("lights", pa.list_(light)),
+        ("lights_json", pa.string()), ("irradiance", pa.string()), ("radiance", pa.string()),
+        ("thumbnail", pa.string()), ("timings", pa.struct([(j, pa.float64()) for j in JOB_NAMES])),
+        ("seconds", pa.float64()), ("peak_rss", pa.int64()), ("worker", pa.string()),
+        ("warnings", pa.list_(pa.string())), ("lightprobe_version", pa.string()),
+    ]
+    meta = {"lightprobe.format": FORMAT, "lightprobe.schema_version": str(SCHEMA_VERSION),
+            "lightprobe.sh_order": "" if order is None else str(order), "lightprobe.sh_frame": "world",
+            "lightprobe.sh_quantity": "radiance", "lightprobe.sh_basis": "real, no Condon-Shortley phase, l(l+1)+m, RGB"}
+    return pa.schema(fields, metadata=meta)
+
+
+def error_schema():
+    pa, _ = _pa()
+    return pa.schema([("path", pa.string()), ("sha256", pa.string()), ("size", pa.int64()),
+                      ("error_class", pa.string()), ("message", pa.string()), ("worker", pa.string()),
+                      ("lightprobe_version", pa.string())],
+                     metadata={"lightprobe.format": FORMAT, "lightprobe.schema_version": str(SCHEMA_VERSION)})
+
+
+# ---- the manifest -----------------------------------------------------------------------------------------------
+def manifest(options: dict) -> dict:
+    from .. import __version__
+
+    return {"format": FORMAT, "version": VERSION, "schema_version": SCHEMA_VERSION, "lightprobe": __version__,
+            "options": options}
+
+
+def read_manifest(out: Path) -> dict | None:
+    try:
+        doc = json.loads((out / "batch.json").read_text())
+    except FileNotFoundError:
+        return None
+    except (OSError, ValueError) as e:
+        raise UsageError(f"{out}/batch.json is unreadable ({e}): not a batch folder this version can resume") \
+            from None
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        raise UsageError(f"{out}/batch.json is not a lightprobe batch manifest")
+    return doc
+
+
+def write_manifest(out: Path, doc: dict) -> None:
+    from ..files import write_text
+
+    write_text(out / "batch.json", json.dumps(doc, indent=1) + "\n")
+
+
+# ---- parts --------------------------------------------------------------------------------------------------------
+class Parts:
+    """The committed chunks of one batch folder, and the writer of new ones."""
+
+    def __init__(self, out: Path, order: int | None):
+        self.folder = out / "parts"
+        self.folder.mkdir(parents=True, exist_ok=True)
+        self.order = order
+        for stale in self.folder.glob(".*.tmp"):  # a part being written when the driver died: never committed
+            stale.unlink(missing_ok=True)
+        self.sequence = 1 + max((int(p.name.split("-")[1]) for p in self.folder.glob("*-*-*.parquet")), default=0)
+
+    def commit(self, kind: str, rows: list[dict]) -> Path | None:
+        """Write ``rows`` as one part (``kind`` rows or errors): to a temporary name, fsync, rename."""
+        if not rows:
+            return None
+        pa, pq = _pa()
+        schema = row_schema(self.order) if kind == "rows" else error_schema()
+        table = pa.Table.from_pylist([{f: r.get(f) for f in schema.names} for r in rows], schema=schema)
+        name = f"{kind}-{self.sequence:06d}-{secrets.token_hex(4)}.parquet"
+        self.sequence += 1
+        temp = self.folder / f".{name}.tmp"
+        pq.write_table(table, temp)
+        with open(temp, "rb") as f:
+            os.fsync(f.fileno())
+        os.replace(temp, self.folder / name)
+        _fsync_folder(self.folder)
+        return self.folder / name
+
+    def read(self, kind: str):
+        """Every committed part of ``kind`` as one table (empty with the schema when none)."""
+        pa, pq = _pa()
+        schema = row_schema(self.order) if kind == "rows" else error_schema()
+        tables = [pq.read_table(p, schema=schema) for p in sorted(self.folder.glob(f"{kind}-*.parquet"))]
+        return pa.concat_tables(tables) if tables else schema.empty_table()
+
+
+def _fsync_folder(folder: Path) -> None:
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+    except OSError:
+        pass
+
+
+def done_keys(parts: Parts) -> tuple[set[str], set[str]]:
+    """Paths already recorded (rows or errors) and content hashes already in the rows."""
+    rows, errors = parts.read("rows"), parts.read("errors")
+    paths = set(rows.column("path").to_pylist()) | set(errors.column("path").to_pylist())
+    return paths, set(rows.column("sha256").to_pylist())
+
+
+def consolidate(out: Path, parts: Parts) -> tuple[int, int]:
+    """Write ``results.parquet`` and ``errors.parquet`` from the parts: each input once (rows by content hash, first
+    committed kept; errors by path, and none for a path that has a row), sorted by path. Atomic each."""
+    import pyarrow.compute as pc
+
+    _, pq = _pa()
+    rows = _first_of_each(parts.read("rows"), "sha256")
+    errors = _first_of_each(parts.read("errors"), "path")
+    if errors.num_rows and rows.num_rows:
+        errors = errors.filter(pc.invert(pc.is_in(errors.column("path"), value_set=rows.column("path"))))
+    for name, table in (("results.parquet", rows), ("errors.parquet", errors)):
+        table = table.sort_by("path") if table.num_rows else table
+        temp = out / f".{name}.tmp-{os.getpid()}"
+        pq.write_table(table, temp)
+        os.replace(temp, out / name)
+    return rows.num_rows, errors.num_rows
+
+
+def _first_of_each(table, key: str):
+    seen, keep = set(), []
+    for i, k in enumerate(table.column(key).to_pylist()):
+        if k not in seen:
+            seen.add(k)
+            keep.append(i)
+    return table.take(keep) if len(keep) != table.num_rows else table

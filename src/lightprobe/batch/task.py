@@ -1,0 +1,208 @@
+"""What a worker does with one input: the same API calls, with the same options, as the single-file commands
+(``lightprobe sh``, ``lights``, ``irradiance``, ``radiance``), so a batch row equals the single-file result bit for
+bit. The worker reads the file itself (no image bytes pass through the driver or the scheduler), writes its
+artifacts atomically under ``OUT/maps/<sha256[:2]>/<sha256>/``, and returns a plain dict: a result row, an error
+row, or a skip. It never raises: a corrupt, truncated or hostile file is one error row.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+import resource
+import socket
+import time
+import warnings
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+JOBS = ("sh", "lights", "irradiance", "radiance", "thumbnail")
+DEFAULT_JOBS = ("sh", "lights", "thumbnail")
+WORKING_BYTES_PER_PIXEL = 64  # as the single-file commands' load(): directions and solid angles per pixel
+IRRADIANCE_SIZE = 32  # lightprobe irradiance's default: a 64×32 latlong
+THUMBNAIL_SIZE = 64  # a 128×64 latlong
+AMBIENT_ORDER = 12  # lightprobe lights' default --ambient-order
+RADIANCE_SIZE = 64
+
+
+@dataclass(frozen=True)
+class JobOptions:
+    """The options every input is processed with (the same for all, recorded in the batch's manifest)."""
+
+    jobs: tuple[str, ...] = DEFAULT_JOBS
+    order: int = 2
+    brdf: str = "ggx:alpha=0.2"
+    radiance_views: int = 12
+    radiance_size: int = RADIANCE_SIZE
+
+    def as_dict(self) -> dict:
+        d = asdict(self)
+        d["jobs"] = list(self.jobs)
+        return d
+
+
+def file_digest(path: Path) -> tuple[str, int]:
+    """sha256 (hex) and size of a file, read in blocks."""
+    h, size = hashlib.sha256(), 0
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+            size += len(block)
+    return h.hexdigest(), size
+
+
+def artifact_folder(out: Path, digest: str) -> Path:
+    return out / "maps" / digest[:2] / digest
+
+
+def _limit_threads() -> None:
+    """One compiled-kernel thread per worker: the pool, not numba, spreads the work over the cores
+    (:func:`lightprobe.jit.use_threads` reads it as the kernels load)."""
+    os.environ["LIGHTPROBE_THREADS"] = "1"
+
+
+def process(path: str, options: JobOptions, out: str, skip: frozenset = frozenset()) -> dict:
+    """One input → ``{"kind": "row" | "error" | "skipped", …}`` (see :mod:`lightprobe.batch.table` for the row's
+    fields). ``skip``: content hashes already in the table."""
+    _limit_threads()
+    t0 = time.perf_counter()
+    base = {"path": path, "worker": f"{socket.gethostname()}:{os.getpid()}"}
+    try:
+        digest, size = file_digest(Path(path))
+    except OSError as e:
+        return {**base, "kind": "error", "error_class": "InputError",
+                "message": f"cannot read {path}: {e.strerror or e}", "sha256": None, "size": None}
+    base.update(sha256=digest, size=size)
+    if digest in skip:
+        return {**base, "kind": "skipped"}
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            row = _row(Path(path), digest, options, Path(out))
+        row["warnings"] = sorted({" ".join(str(w.message).split())[:300] for w in caught
+                                  if w.category.__name__ == "LightprobeWarning"})
+    except MemoryError:
+        return {**base, "kind": "error", "error_class": "MemoryError", "message": "out of memory"}
+    except Exception as e:  # noqa: BLE001 - whatever a hostile file provokes is that file's error, not the batch's
+        from ..errors import LightprobeError
+
+        text = " ".join(str(e).split())[:500] or type(e).__name__
+        if not isinstance(e, LightprobeError):
+            text = f"{type(e).__name__}: {text}"
+        return {**base, "kind": "error", "error_class": type(e).__name__, "message": text}
+    row.update(base, kind="row", seconds=time.perf_counter() - t0,
+               peak_rss=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024)
+    return row
+
+
+def _row(path: Path, digest: str, options: JobOptions, out: Path) -> dict:
+    from .. import __version__
+    from ..envmap import read_envmap
+    from ..io import image_header
+    from ..limits import check_memory
+
+    timings = {}
+    t = time.perf_counter()
+    header = image_header(path)
+    check_memory(header.read_bytes() + header.pixels * WORKING_BYTES_PER_PIXEL,
+                 f"{path} ({header.width}×{header.height} pixels)", kernels=True)
+    env = read_envmap(path, None, fix=True)
+    timings["read"] = time.perf_counter() - t
+    folder = artifact_folder(out, digest)
+    row = {"layout": env.layout.name, "width": int(header.width), "height": int(header.height),
+           "integral": [float(v) for v in env.integral()], "lightprobe_version": __version__,
+           "sh": None, "sh_order": None, "lights": None, "light_count": None,
+           "lights_json": None, "irradiance": None, "radiance": None, "thumbnail": None}
+    for job in options.jobs:
+        t = time.perf_counter()
+        _as_a_fresh_command(job)
+        JOB_FUNCTIONS[job](env, path, options, folder, out, row)
+        timings[job] = time.perf_counter() - t
+    row["timings"] = timings
+    return row
+
+
+# The SH projection takes numba or numpy by what the process has loaded (lightprobe.jit.worth_compiling), and the
+# two agree to the last bits only. A fresh `lightprobe sh` or `irradiance` has not loaded numba when it projects
+# (the choice is by the map's size alone); `lights` and `radiance` have, through their own kernels, before theirs.
+FRESH_COMPILE_POLICY = {"sh": "by-work", "irradiance": "by-work"}
+
+
+def _as_a_fresh_command(job: str) -> None:
+    if job in FRESH_COMPILE_POLICY:
+        os.environ["LIGHTPROBE_COMPILE"] = FRESH_COMPILE_POLICY[job]
+    else:
+        os.environ.pop("LIGHTPROBE_COMPILE", None)
+
+
+def _sh(env, path, options, folder, out, row) -> None:
+    from ..sh import project
+
+    sh = project(env, options.order, "world").windowed("none")  # lightprobe sh FILE --order N (defaults)
+    row["sh"] = [float(v) for v in sh.coeffs.reshape(-1)]
+    row["sh_order"] = options.order
+
+
+def _lights(env, path, options, folder, out, row) -> None:
+    from ..files import write_text
+    from ..lights import LightParams, decompose
+    from ..lightsfile import lights_json
+    from ..sh import project
+
+    params = LightParams()  # lightprobe lights FILE -o X (defaults)
+    params.check()
+    dec = decompose(env, params)
+    text = lights_json(dec, project(dec.ambient, AMBIENT_ORDER), str(path))
+    folder.mkdir(parents=True, exist_ok=True)
+    write_text(folder / "lights.json", text)
+    row["lights_json"] = str((folder / "lights.json").relative_to(out))
+    row["light_count"] = len(dec.lights)
+    row["lights"] = [{"direction": [float(v) for v in light.direction], "angular_radius_deg": math.degrees(light.radius),
+        "solid_angle_sr": float(light.solid_angle),
+        "power": [float(v) for v in light.power], "radiance": [float(v) for v in light.radiance]}
+        for light in dec.lights]
+
+
+def _irradiance(env, path, options, folder, out, row) -> None:
+    from ..irradiance import irradiance_map
+    from ..layouts import LATLONG
+
+    folder.mkdir(parents=True, exist_ok=True)
+    # lightprobe irradiance FILE -o X.exr --order N (latlong 64×32, SH, no window)
+    irradiance_map(env, LATLONG, IRRADIANCE_SIZE, "sh", options.order, "none").to_envmap_image().save(
+        folder / "irradiance.exr")
+    row["irradiance"] = str((folder / "irradiance.exr").relative_to(out))
+
+
+def _radiance(env, path, options, folder, out, row) -> None:
+    from ..brdf import parse_brdf
+    from ..radiance import geodesic_views, prepare, radiance_map, view_frame
+    from ..radiancefile import RadianceSet, write_radiance_set
+
+    import numpy as np
+
+    brdf = parse_brdf(options.brdf)  # lightprobe radiance FILE --brdf B --views V --size S -o DIR
+    lighting = prepare(env)
+    views, triangles = geodesic_views(options.radiance_views)
+    maps = tuple(radiance_map(lighting, brdf, v, options.radiance_size) for v in views)
+    rset = RadianceSet(brdf, views, np.array([view_frame(v) for v in views]), maps, triangles, {})
+    folder.mkdir(parents=True, exist_ok=True)
+    write_radiance_set(folder / "radiance", rset, source=str(path))
+    row["radiance"] = str((folder / "radiance").relative_to(out))
+
+
+def _thumbnail(env, path, options, folder, out, row) -> None:
+    from ..io import write_image
+    from ..layouts import LATLONG
+    from ..tonemap import auto_exposure
+
+    small = env.to(LATLONG, THUMBNAIL_SIZE)
+    folder.mkdir(parents=True, exist_ok=True)
+    write_image(folder / "thumbnail.png", small.data, exposure=auto_exposure(small.data, small.solid_angles()),
+                curve="aces")
+    row["thumbnail"] = str((folder / "thumbnail.png").relative_to(out))
+
+
+JOB_FUNCTIONS = {"sh": _sh, "lights": _lights, "irradiance": _irradiance, "radiance": _radiance,
+                 "thumbnail": _thumbnail}
