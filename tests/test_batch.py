@@ -89,7 +89,8 @@ def check_exactly_once(out: Path, dataset, reference: Path) -> None:
     assert ours == theirs
     for r in rows:
         assert (out / r["thumbnail"]).is_file() and len(r["sh"]) == 3 * 16
-    assert not list(out.rglob(".*.tmp*"))
+    leftovers = [str(p.relative_to(out)) for p in out.rglob(".*tmp*")]
+    assert not leftovers, leftovers
 
 
 def test_uninterrupted_batch_records_every_input_once(dataset, reference):
@@ -129,7 +130,7 @@ def kill_and_resume(listing: Path, out: Path, args, kills: int = 5, seed: int = 
         while proc.poll() is None and time.time() < deadline and (
                 not parts.is_dir() or len(list(parts.glob("*.parquet"))) <= committed):
             time.sleep(0.05)
-        time.sleep(float(rng.uniform(0.0, 2.0)))
+        time.sleep(float(rng.uniform(0.0, 0.3)))
         proc.send_signal(signal.SIGKILL)
         proc.wait(timeout=30)
         time.sleep(0.3)  # the kernel ends the orphaned workers (PR_SET_PDEATHSIG)
@@ -140,7 +141,7 @@ def kill_and_resume(listing: Path, out: Path, args, kills: int = 5, seed: int = 
     while killed is None and proc.poll() is None and time.time() < deadline:
         workers = _workers_of(proc.pid)
         if workers:
-            time.sleep(0.8)
+            time.sleep(0.5)  # busy by then: past its start-up, into the inputs
             try:
                 os.kill(workers[0], signal.SIGKILL)
                 killed = workers[0]
@@ -150,6 +151,7 @@ def kill_and_resume(listing: Path, out: Path, args, kills: int = 5, seed: int = 
     stdout, stderr = proc.communicate(timeout=900)
     assert proc.returncode == 0, stderr
     assert "already there" in stdout  # the killed runs had committed work that this one kept
+    assert killed is not None, "the last run ended before a worker could be killed"
     return stdout.strip(), killed
 
 

@@ -53,12 +53,11 @@ class Summary:
 _SKIP: frozenset = frozenset()
 
 
-def _die_with_the_driver() -> None:
-    """A worker outlives nothing: on Linux the kernel kills it when its parent dies (PR_SET_PDEATHSIG); elsewhere a
-    thread watches for the parent to change."""
+def _die_with_the_driver(parent: int) -> None:
+    """A worker outlives nothing: on Linux the kernel kills it when its parent, the driver ``parent``, dies
+    (PR_SET_PDEATHSIG); elsewhere a thread watches for the parent to change."""
     import threading
 
-    parent = os.getppid()
     try:
         import ctypes
 
@@ -76,9 +75,9 @@ def _die_with_the_driver() -> None:
     threading.Thread(target=watch, daemon=True).start()
 
 
-def _init_worker(skip: frozenset) -> None:
+def _init_worker(skip: frozenset, driver: int) -> None:
     global _SKIP
-    _die_with_the_driver()
+    _die_with_the_driver(driver)
     _SKIP = skip
 
 
@@ -124,7 +123,8 @@ class LocalPool:
         from concurrent.futures.process import BrokenProcessPool
 
         while pending:
-            pool = ProcessPoolExecutor(self.workers, mp_context=context, initializer=_init_worker, initargs=(skip,))
+            pool = ProcessPoolExecutor(self.workers, mp_context=context, initializer=_init_worker,
+                                       initargs=(skip, os.getpid()))
             in_flight: dict = {}
             broken = False
             try:
@@ -243,6 +243,38 @@ def check_out(out: Path, options: JobOptions, resume: bool, force: bool) -> dict
     return existing or wanted
 
 
+def _sweep(out: Path) -> None:
+    """Remove what a killed driver left half-written: consolidated tables being written (``.NAME.tmp-PID`` of a
+    process no longer alive). Parts and artifacts sweep their own folders."""
+    from ..files import process_alive
+
+    for stale in out.glob(".*.parquet.tmp-*"):
+        pid = stale.name.rsplit("-", 1)[-1]
+        if not pid.isdigit() or not process_alive(int(pid)):
+            stale.unlink(missing_ok=True)
+
+
+def _sweep_artifacts(out: Path) -> None:
+    """Remove the temporary files of workers killed mid-write (their artifact was redone and renamed into place
+    by another worker, or will be by the next run)."""
+    from ..files import sweep_stale_temporaries
+
+    import shutil
+
+    from ..files import process_alive
+
+    maps = out / "maps"
+    if not maps.is_dir():
+        return
+    for stale in list(maps.rglob(".*.tmp*")):
+        if stale.is_dir():  # a radiance-map folder being written (.radiance.tmp-PID)
+            pid = stale.name.rsplit("-", 1)[-1]
+            if pid.isdigit() and not process_alive(int(pid)):
+                shutil.rmtree(stale, ignore_errors=True)
+        elif stale.exists():
+            sweep_stale_temporaries(stale.parent)
+
+
 def run_batch(inputs: list[str], out: Path, options: JobOptions, executor, resume: bool = False,
               force: bool = False, chunk_rows: int = CHUNK_ROWS, chunk_seconds: float = CHUNK_SECONDS,
               progress=None) -> Summary:
@@ -254,6 +286,7 @@ def run_batch(inputs: list[str], out: Path, options: JobOptions, executor, resum
         out.mkdir(parents=True, exist_ok=True)
     except OSError as e:
         raise UsageError(f"cannot write into --out {out}: {e.strerror or e}") from None
+    _sweep(out)
     write_manifest(out, {**doc, **{k: v for k, v in manifest(options.as_dict()).items() if k != "options"}})
     parts = Parts(out, options.order if "sh" in options.jobs else None)
     done_paths, done_hashes = done_keys(parts)
@@ -288,6 +321,7 @@ def run_batch(inputs: list[str], out: Path, options: JobOptions, executor, resum
         if progress is not None:
             progress(summary)
     commit()
+    _sweep_artifacts(out)
     summary.seconds = time.perf_counter() - t0
     summary.rows, summary.errors = consolidate(out, parts)
     return summary
