@@ -27,7 +27,7 @@ import numpy as np
 from lightprobe.brdf import directional_albedo, parse_brdf
 from lightprobe.envmap import read_envmap
 from lightprobe.radiance import geodesic_views, prepare, radiance_map, reflected_radiance, sphere_normals, view_frame
-from lightprobe.radiancefile import RadianceSet
+from lightprobe.radiancefile import RadianceSet, radiance_set
 from lightprobe.rsibr import synthesize
 
 GRACE = "debevec/angular/grace_probe.hdr"
@@ -52,9 +52,7 @@ def synthesis(size: int, tests: int, alphas: list[float]) -> None:
         brdf = parse_brdf(f"ggx:alpha={alpha}")
         truth = [radiance_map(lighting, brdf, v, size).data[disc] for v in targets]
         for count in (12, 42, 162):
-            views, triangles = geodesic_views(count)
-            maps = tuple(radiance_map(lighting, brdf, v, size) for v in views)
-            rset = RadianceSet(brdf, views, np.array([view_frame(v) for v in views]), maps, triangles, {})
+            rset = radiance_set(lighting, brdf, *geodesic_views(count), size)
             cells = []
             for warp in ("normal", "mirror"):
                 errors = [np.sqrt(np.mean((synthesize(rset, v, warp).data[disc] - t) ** 2) / np.mean(t ** 2))

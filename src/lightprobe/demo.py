@@ -616,8 +616,8 @@ def section_glossy(rep: Report) -> str:
     """Glossy reflection (Cabral, Olano & Nemec 1999): the 12 source radiance maps, a synthesised map beside the
     map computed directly, and a glossy sphere by RS-IBR (per frame and per pixel), the split sum and Mitsuba."""
     from .brdf import parse_brdf
-    from .radiance import geodesic_views, prepare, radiance_map, view_frame
-    from .radiancefile import RadianceSet
+    from .radiance import geodesic_views, prepare, radiance_map
+    from .radiancefile import radiance_set
     from .render.compare import compare, error_heatmap
     from .render.methods import method
     from .render.raycast import Tracer
@@ -629,9 +629,8 @@ def section_glossy(rep: Report) -> str:
     t0 = time.perf_counter()
     lighting = prepare(rep.env)
     gold = parse_brdf(GLOSSY_DEMO[0])
-    views, triangles = geodesic_views(12)
-    maps = tuple(radiance_map(lighting, gold, v, 40) for v in views)
-    rset = RadianceSet(gold, views, np.array([view_frame(v) for v in views]), maps, triangles, {})
+    rset = radiance_set(lighting, gold, *geodesic_views(12), 40)
+    maps = rset.maps
     rep.timings["12 radiance maps 40² (gold)"] = time.perf_counter() - t0
     new_view = np.array([0.35, 0.45, 0.82]) / np.linalg.norm([0.35, 0.45, 0.82])
     t0 = time.perf_counter()
@@ -750,7 +749,8 @@ def section_viewer(rep: Report) -> str:
     rep.timings["viewer screenshots (headless Chromium, SwiftShader)"] = time.perf_counter() - t0
     return (title + "<p>The page (WebGL2; three.js from npm for the scene and the loop, lightprobe's own shaders "
             "for the lighting) with the bake of this probe — "
-            f"{doc['lights']['count']} area lights, 12 radiance maps of {html.escape(doc['brdfs'][0]['spec'])} — exported by "
+            f"{doc['lights']['count']} area lights, 12 radiance maps of {html.escape(doc['brdfs'][0]['spec'])} — "
+            "exported by "
             "<code>lightprobe view --export</code> into <code>viewer/</code> beside this report. Module scripts "
             "need HTTP: serve it with <code>python3 -m http.server -d viewer</code> and open the address it prints. "
             "Each picture below is that exported page, served by a plain static server and drawn by headless "

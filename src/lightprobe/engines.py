@@ -23,6 +23,15 @@ from .errors import LightprobeError
 
 ENGINES = Path(os.environ.get("LIGHTPROBE_ENGINES", Path(__file__).resolve().parents[2] / "engines"))
 CHROMIUM = "/usr/bin/chromium"
+# SwiftShader for WebGL2; no sandbox (root in CI); none of Chromium's own network traffic, which this machine's closed
+# network refuses
+CHROMIUM_ARGS = ["--enable-unsafe-swiftshader", "--use-angle=swiftshader", "--no-sandbox",
+                 "--disable-background-networking", "--disable-component-update", "--disable-sync", "--no-first-run"]
+
+
+def launch_chromium(playwright):
+    """Debian's Chromium, headless, through a started Playwright (never a browser Playwright downloads)."""
+    return playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 PACKAGES = ("three", "@babylonjs/core", "@babylonjs/loaders", "filament")  # pinned in engines/package.json
 
@@ -80,8 +89,7 @@ class Browser:
         from playwright.sync_api import sync_playwright
 
         self.playwright = sync_playwright().start()
-        self.browser = self.playwright.chromium.launch(
-            executable_path=CHROMIUM, args=["--enable-unsafe-swiftshader", "--use-angle=swiftshader", "--no-sandbox"])
+        self.browser = launch_chromium(self.playwright)
         self.server = server
         self.errors: list[str] = []
 

@@ -169,3 +169,13 @@ def _umask() -> int:
     mask = os.umask(0o022)
     os.umask(mask)
     return mask
+
+
+def digest_file(path: str | os.PathLike, digest) -> int:
+    """Feed the file's bytes to ``digest`` (a hashlib object) in 1 MiB blocks; returns how many bytes there were."""
+    size = 0
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+            size += len(block)
+    return size

@@ -56,6 +56,21 @@ class RadianceSet:
         return self.maps[0].data.shape[0]
 
 
+def radiance_set(lighting, brdf: BRDF, views: np.ndarray, triangles: np.ndarray | None, size: int,
+                 method: dict | None = None, progress: str | None = None) -> RadianceSet:
+    """The set of ``brdf``'s radiance maps (:func:`lightprobe.radiance.radiance_map`, ``size``²) at unit ``views``
+    (N, 3) under ``lighting`` (a :class:`lightprobe.radiance.Lighting` or an EnvMap), with the frames
+    :func:`lightprobe.radiance.view_frame` gives them; ``triangles`` the view mesh, or None. ``progress``: a
+    progress bar's label."""
+    from .progress import track
+    from .radiance import radiance_map, view_frame
+
+    views = np.asarray(views, dtype=np.float64)
+    each = track(list(views), progress) if progress else views
+    maps = tuple(radiance_map(lighting, brdf, v, size) for v in each)
+    return RadianceSet(brdf, views, np.array([view_frame(v) for v in views]), maps, triangles, method or {})
+
+
 def manifest(rset: RadianceSet, files: list[str], timings: dict | None = None, source: str | None = None) -> dict:
     """The schema's object for a set whose maps are (to be) written as ``files``."""
     views = [{"file": f, "direction": [float(x) for x in v], "up": [float(x) for x in t[:, 1]],

@@ -16,7 +16,7 @@ import os
 import signal
 import time
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import UsageError
@@ -42,7 +42,6 @@ class Summary:
     errors: int = 0
     workers: int = 0
     executor: str = ""
-    timings: dict = field(default_factory=dict)
 
     @property
     def throughput(self) -> float:
@@ -215,7 +214,7 @@ class DaskPool:
 
 
 # ---- the driver -----------------------------------------------------------------------------------------------------
-def check_out(out: Path, options: JobOptions, resume: bool, force: bool) -> dict:
+def check_out(out: Path, options: JobOptions, resume: bool, force: bool) -> None:
     """Refuse an unusable ``--out`` before any work: not a folder, not writable, a batch there without
     ``--resume``, or ``--resume`` on a batch of another lightprobe version (unless ``force``) or other options."""
     out = Path(out)
@@ -240,7 +239,6 @@ def check_out(out: Path, options: JobOptions, resume: bool, force: bool) -> dict
         nearest = nearest.parent
     if not nearest.is_dir() or not os.access(nearest, os.W_OK | os.X_OK):
         raise UsageError(f"cannot write into --out {out}: {nearest} is not a writable folder")
-    return existing or wanted
 
 
 def _sweep(out: Path) -> None:
@@ -281,13 +279,13 @@ def run_batch(inputs: list[str], out: Path, options: JobOptions, executor, resum
     """Process ``inputs`` into ``out`` with ``executor`` (a :class:`LocalPool` or :class:`DaskPool`); returns the
     summary. ``progress(summary)`` is called after every result."""
     out = Path(out)
-    doc = check_out(out, options, resume, force)
+    check_out(out, options, resume, force)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as e:
         raise UsageError(f"cannot write into --out {out}: {e.strerror or e}") from None
     _sweep(out)
-    write_manifest(out, {**doc, **{k: v for k, v in manifest(options.as_dict()).items() if k != "options"}})
+    write_manifest(out, manifest(options.as_dict()))  # the options are the folder's (check_out); versions now ours
     parts = Parts(out, options.order if "sh" in options.jobs else None)
     done_paths, done_hashes = done_keys(parts)
     todo = [p for p in inputs if p not in done_paths]

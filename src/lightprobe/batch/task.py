@@ -22,7 +22,6 @@ DEFAULT_JOBS = ("sh", "lights", "thumbnail")
 WORKING_BYTES_PER_PIXEL = 64  # as the single-file commands' load(): directions and solid angles per pixel
 IRRADIANCE_SIZE = 32  # lightprobe irradiance's default: a 64×32 latlong
 THUMBNAIL_SIZE = 64  # a 128×64 latlong
-AMBIENT_ORDER = 12  # lightprobe lights' default --ambient-order
 RADIANCE_SIZE = 64
 
 
@@ -43,12 +42,11 @@ class JobOptions:
 
 
 def file_digest(path: Path) -> tuple[str, int]:
-    """sha256 (hex) and size of a file, read in blocks."""
-    h, size = hashlib.sha256(), 0
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-            size += len(block)
+    """sha256 (hex) and size of a file."""
+    from ..files import digest_file
+
+    h = hashlib.sha256()
+    size = digest_file(path, h)
     return h.hexdigest(), size
 
 
@@ -98,16 +96,13 @@ def process(path: str, options: JobOptions, out: str, skip: frozenset = frozense
 
 def _row(path: Path, digest: str, options: JobOptions, out: Path) -> dict:
     from .. import __version__
-    from ..envmap import read_envmap
+    from ..envmap.files import read_envmap_within_budget
     from ..io import image_header
-    from ..limits import check_memory
 
     timings = {}
     t = time.perf_counter()
-    header = image_header(path)
-    check_memory(header.read_bytes() + header.pixels * WORKING_BYTES_PER_PIXEL,
-                 f"{path} ({header.width}×{header.height} pixels)", kernels=True)
-    env = read_envmap(path, None, fix=True)
+    env = read_envmap_within_budget(path, working_bytes_per_pixel=WORKING_BYTES_PER_PIXEL, kernels=True)
+    header = image_header(path)  # the file's own width and height (a cross's or a strip's, not the grid's)
     timings["read"] = time.perf_counter() - t
     folder = artifact_folder(out, digest)
     row = {"layout": env.layout.name, "width": int(header.width), "height": int(header.height),
@@ -146,6 +141,7 @@ def _sh(env, path, options, folder, out, row) -> None:
 
 def _lights(env, path, options, folder, out, row) -> None:
     from ..files import write_text
+    from ..hybrid import DEFAULT_AMBIENT_ORDER
     from ..lights import LightParams, decompose
     from ..lightsfile import lights_json
     from ..sh import project
@@ -153,15 +149,15 @@ def _lights(env, path, options, folder, out, row) -> None:
     params = LightParams()  # lightprobe lights FILE -o X (defaults)
     params.check()
     dec = decompose(env, params)
-    text = lights_json(dec, project(dec.ambient, AMBIENT_ORDER), str(path))
+    text = lights_json(dec, project(dec.ambient, DEFAULT_AMBIENT_ORDER), str(path))  # lights' --ambient-order
     folder.mkdir(parents=True, exist_ok=True)
     write_text(folder / "lights.json", text)
     row["lights_json"] = str((folder / "lights.json").relative_to(out))
     row["light_count"] = len(dec.lights)
-    row["lights"] = [{"direction": [float(v) for v in light.direction], "angular_radius_deg": math.degrees(light.radius),
-        "solid_angle_sr": float(light.solid_angle),
-        "power": [float(v) for v in light.power], "radiance": [float(v) for v in light.radiance]}
-        for light in dec.lights]
+    row["lights"] = [{"direction": [float(v) for v in light.direction],
+                      "angular_radius_deg": math.degrees(light.radius), "solid_angle_sr": float(light.solid_angle),
+                      "power": [float(v) for v in light.power], "radiance": [float(v) for v in light.radiance]}
+                     for light in dec.lights]
 
 
 def _irradiance(env, path, options, folder, out, row) -> None:
@@ -177,16 +173,11 @@ def _irradiance(env, path, options, folder, out, row) -> None:
 
 def _radiance(env, path, options, folder, out, row) -> None:
     from ..brdf import parse_brdf
-    from ..radiance import geodesic_views, prepare, radiance_map, view_frame
-    from ..radiancefile import RadianceSet, write_radiance_set
-
-    import numpy as np
+    from ..radiance import geodesic_views, prepare
+    from ..radiancefile import radiance_set, write_radiance_set
 
     brdf = parse_brdf(options.brdf)  # lightprobe radiance FILE --brdf B --views V --size S -o DIR
-    lighting = prepare(env)
-    views, triangles = geodesic_views(options.radiance_views)
-    maps = tuple(radiance_map(lighting, brdf, v, options.radiance_size) for v in views)
-    rset = RadianceSet(brdf, views, np.array([view_frame(v) for v in views]), maps, triangles, {})
+    rset = radiance_set(prepare(env), brdf, *geodesic_views(options.radiance_views), options.radiance_size)
     folder.mkdir(parents=True, exist_ok=True)
     write_radiance_set(folder / "radiance", rset, source=str(path))
     row["radiance"] = str((folder / "radiance").relative_to(out))

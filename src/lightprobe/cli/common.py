@@ -148,15 +148,10 @@ def load(path: Path | None, layout: str | None, fix: bool = True, working_bytes_
     """Read a probe (the shipped one when ``path`` is None) after checking that reading it plus
     ``working_bytes_per_pixel`` per pixel plus ``extra_bytes`` fits the memory budget (with numba's own memory
     when the command runs compiled ``kernels``)."""
-    from ..envmap import read_envmap
-    from ..io import image_header
-    from ..limits import check_memory
+    from ..envmap.files import read_envmap_within_budget
 
-    source = probe_path(path)
-    header = image_header(source)
-    check_memory(header.read_bytes() + header.pixels * working_bytes_per_pixel + extra_bytes,
-                 what or f"{source} ({header.width}×{header.height} pixels)", kernels=kernels)
-    return read_envmap(source, layout, fix=fix)
+    return read_envmap_within_budget(probe_path(path), layout, fix=fix, extra_bytes=extra_bytes, what=what,
+                                     working_bytes_per_pixel=working_bytes_per_pixel, kernels=kernels)
 
 
 # ---- output -------------------------------------------------------------------------------------------------------

@@ -97,9 +97,8 @@ def _synthesize(args) -> None:
 def _bake(args) -> None:
     from ..brdf import parse_brdf
     from ..files import check_output
-    from ..radiance import check_views, geodesic_views, prepare, radiance_map, view_frame
-    from ..radiancefile import RadianceSet, manifest, write_radiance_set
-    from ..progress import track
+    from ..radiance import check_views, geodesic_views, prepare
+    from ..radiancefile import manifest, radiance_set, write_radiance_set
 
     brdf = parse_brdf(args.brdf)
     inputs = [args.file] if args.file else []
@@ -122,15 +121,13 @@ def _bake(args) -> None:
         views, triangles = geodesic_views(args.views)
     t0 = time.perf_counter()
     level = lighting.level_for(brdf, args.size * args.size)
-    maps = tuple(radiance_map(lighting, brdf, v, args.size) for v in track(list(views), "radiance maps"))
-    timings["maps"] = time.perf_counter() - t0
-    import numpy as np
-
     face = lighting.levels[level].grid[-1]
     method = {"how": "exact sums over a box-filtered level of the working cube, the brightest texels as point "
                      "sources", "working_size": lighting.levels[0].grid[-1], "source_level": level,
               "source_face_size": face, "peaks": int(len(lighting.peak_directions))}
-    rset = RadianceSet(brdf, views, np.array([view_frame(v) for v in views]), maps, triangles, method)
+    rset = radiance_set(lighting, brdf, views, triangles, args.size, method, progress="radiance maps")
+    maps = rset.maps
+    timings["maps"] = time.perf_counter() - t0
     source = str(args.file) if args.file else "(shipped probe)"
     if args.view is None:
         write_radiance_set(args.output, rset, timings, source)

@@ -57,3 +57,19 @@ def read_envmap(path: str | os.PathLike, layout: str | Layout | None = None, *, 
         return from_image(owned(image), layout)  # a fresh array of ours: the map takes it without a copy
     except LayoutError as e:
         raise LayoutError(f"{path}: {e}") from None
+
+
+def read_envmap_within_budget(path: str | os.PathLike, layout: str | Layout | None = None, *, fix: bool = True,
+                              working_bytes_per_pixel: int = 0, extra_bytes: int = 0, what: str = "",
+                              kernels: bool = False) -> EnvMap:
+    """:func:`read_envmap` after checking, from the file's header alone, that reading it plus
+    ``working_bytes_per_pixel`` per pixel plus ``extra_bytes`` fits the memory budget (with numba's own memory when
+    the work runs compiled ``kernels``): what every command and every batch worker reads a probe with."""
+    from ..io import image_header
+    from ..limits import check_memory
+
+    header = image_header(path)
+    check_memory(header.read_bytes() + header.pixels * working_bytes_per_pixel + extra_bytes,
+                 what or f"{path} ({header.width}×{header.height} pixels)", kernels=kernels)
+    return read_envmap(path, layout, fix=fix)
+

@@ -25,8 +25,8 @@ from ..brdf import GGX, BRDF, Schlick, reflect
 from ..errors import UsageError
 from ..irradiance import brute_irradiance
 from ..prefilter import hammersley, prefilter_cube
-from ..radiance import check_views, geodesic_views, prepare, radiance_map, view_frame
-from ..radiancefile import RadianceSet
+from ..radiance import check_views, geodesic_views, prepare, radiance_map
+from ..radiancefile import RadianceSet, radiance_set
 from ..rsibr import map_at_normals, reflected_by_view, synthesize
 from .methods import Method, PerEnvironment
 
@@ -116,12 +116,8 @@ class RSIBRMethod(GlossyMethod):
 
     def radiance_set(self, scene, brdf: BRDF) -> RadianceSet:
         """The set of source maps of ``brdf`` under the scene's environment (baked once per environment)."""
-        def bake():
-            views, triangles = geodesic_views(self.views)
-            maps = tuple(radiance_map(self.lighting(scene), brdf, v, self.map_size) for v in views)
-            return RadianceSet(brdf, views, np.array([view_frame(v) for v in views]), maps, triangles, {})
-
-        return self.cached(scene, ("set", brdf.spec(), self.views, self.map_size), bake)
+        return self.cached(scene, ("set", brdf.spec(), self.views, self.map_size), lambda: radiance_set(
+            self.lighting(scene), brdf, *geodesic_views(self.views), self.map_size))
 
     def reflected(self, scene, brdf, normals, views):
         rset = self.radiance_set(scene, brdf)
@@ -152,6 +148,16 @@ def dfg_terms(alpha: float, steps: int = DFG_STEPS, samples: int = DFG_SAMPLES) 
     return np.stack([(weight * (1 - fc)).mean(axis=1), (weight * fc).mean(axis=1)], axis=1)
 
 
+def splitsum_cube(env, alpha: float, size: int):
+    """The environment prefiltered with the GGX lobe of ``alpha`` under n = v = r, a ``size``² cube (radiance, world
+    frame): the split sum's first factor (every mip level prefiltered with the same α; the finest is kept)."""
+    from ..envmap import EnvMap
+    from ..layouts import CUBE
+
+    levels = int(np.log2(size)) + 1
+    return EnvMap(prefilter_cube(env, size, [alpha] * levels).levels[0], CUBE)
+
+
 class SplitSumMethod(GlossyMethod):
     """Karis's split sum (see the module docstring)."""
 
@@ -166,12 +172,8 @@ class SplitSumMethod(GlossyMethod):
     def reflected(self, scene, brdf, normals, views):
         if not isinstance(brdf, GGX):
             raise UsageError(f"splitsum is defined for GGX materials, not {brdf.spec()}")
-        from ..envmap import EnvMap
-        from ..layouts import CUBE
-
-        levels = int(np.log2(self.cube_size)) + 1
-        cube = self.cached(scene, ("prefiltered", brdf.alpha, self.cube_size), lambda: EnvMap(
-            prefilter_cube(scene.environment, self.cube_size, [brdf.alpha] * levels).levels[0], CUBE))
+        cube = self.cached(scene, ("prefiltered", brdf.alpha, self.cube_size),
+                           lambda: splitsum_cube(scene.environment, brdf.alpha, self.cube_size))
         dfg = self.cached(scene, ("dfg", brdf.alpha), lambda: dfg_terms(brdf.alpha))
         mu = np.clip(np.sum(normals * views, axis=1), 0.0, 1.0)
         x = np.clip(mu * DFG_STEPS - 0.5, 0, DFG_STEPS - 1)

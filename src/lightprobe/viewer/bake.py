@@ -34,7 +34,6 @@ import numpy as np
 from ..errors import BudgetError, UsageError
 
 FORMAT, VERSION = "lightprobe.view", 1
-AMBIENT_ORDER = 12  # as the renderer's ``lights`` method (DEFAULT_AMBIENT_ORDER)
 BACKGROUND_WIDTH = 1024
 AMBIENT_GRID = (64, 128)
 PREFILTERED_GRID = (128, 256)
@@ -108,13 +107,13 @@ def mesh_triangle_count(path: Path) -> int:
 
 def cache_folder(probe: Path, mesh: Path | None, options: BakeOptions, root: Path | None = None) -> Path:
     """``root``/<key>: the key hashes the probe's and the mesh's bytes, the options and the format's version."""
+    from ..files import digest_file
+
     digest = hashlib.sha256(f"{FORMAT} {VERSION} {options.key()}".encode())
     for path in (probe, mesh):
         digest.update(b"\0")
         if path is not None:
-            with open(path, "rb") as f:
-                for block in iter(lambda: f.read(1 << 20), b""):
-                    digest.update(block)
+            digest_file(path, digest)
     root = root or Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "lightprobe" / "view"
     return root / digest.hexdigest()[:24]
 
@@ -147,12 +146,11 @@ def _background(env, width: int) -> np.ndarray:
 
 
 def _latlong_directions(rows: int, cols: int) -> np.ndarray:
+    """The pixel-centre directions of a rows × cols latlong, (rows · cols, 3)."""
+    from ..envmap.map import pixel_directions
     from ..layouts import LATLONG
 
-    u = (np.arange(cols) + 0.5) / cols
-    v = (np.arange(rows) + 0.5) / rows
-    uu, vv = np.meshgrid(u, v)
-    return LATLONG.uv_to_dir(0, uu, vv)
+    return pixel_directions(LATLONG, (rows, cols)).reshape(-1, 3)
 
 
 def _scene(env, mesh: Path | None):
@@ -186,44 +184,41 @@ def _camera(scene) -> dict:
 
 
 def _lights(env, folder: Path, params: dict) -> dict:
+    from ..hybrid import DEFAULT_AMBIENT_ORDER
     from ..lights import LightParams, decompose
     from ..lightsfile import lights_json
     from ..sh import project
 
     dec = decompose(env, LightParams(**params) if params else None)
-    ambient = project(dec.ambient, AMBIENT_ORDER)
+    ambient = project(dec.ambient, DEFAULT_AMBIENT_ORDER)  # as the renderer's ``lights`` method
     (folder / "lights.json").write_text(lights_json(dec, ambient))
     rows, cols = AMBIENT_GRID
-    irradiance = np.maximum(ambient.to_irradiance().evaluate(_latlong_directions(rows, cols).reshape(-1, 3)), 0.0)
+    irradiance = np.maximum(ambient.to_irradiance().evaluate(_latlong_directions(rows, cols)), 0.0)
     return {"file": "lights.json", "count": len(dec.lights),
             "ambient": {**_write_array(folder, "ambient.f32", irradiance.reshape(rows, cols, 3)),
-                        "quantity": "irradiance", "order": AMBIENT_ORDER}}
+                        "quantity": "irradiance", "order": DEFAULT_AMBIENT_ORDER}}
 
 
 def _brdf_part(env, lighting, spec: str, index: int, options: BakeOptions, folder: Path) -> dict:
     from ..brdf import GGX, parse_brdf
-    from ..envmap import EnvMap
-    from ..layouts import CUBE
-    from ..prefilter import prefilter_cube
-    from ..progress import track
-    from ..radiance import geodesic_views, radiance_map, view_frame
-    from ..render.glossy import dfg_terms, normal_reflectance
+    from ..radiance import geodesic_views
+    from ..radiancefile import radiance_set
+    from ..render.glossy import dfg_terms, normal_reflectance, splitsum_cube
 
     brdf = parse_brdf(spec)
-    views, triangles = geodesic_views(options.views)
     t0 = time.perf_counter()
-    maps = [radiance_map(lighting, brdf, v, options.map_size).data
-            for v in track(views, f"radiance maps of {brdf.spec()}")]
-    part = {"spec": brdf.spec(), "central": brdf.central, "views": views.tolist(),
-            "triangles": triangles.tolist(), "frames": [view_frame(v).tolist() for v in views],
-            "maps": {**_write_array(folder, f"radiance-{index}.f32", np.stack(maps)), "quantity": "radiance"},
+    rset = radiance_set(lighting, brdf, *geodesic_views(options.views), options.map_size,
+                        progress=f"radiance maps of {brdf.spec()}")
+    maps = np.stack([m.data for m in rset.maps])
+    part = {"spec": brdf.spec(), "central": brdf.central, "views": rset.views.tolist(),
+            "triangles": rset.triangles.tolist(), "frames": rset.frames.tolist(),
+            "maps": {**_write_array(folder, f"radiance-{index}.f32", maps), "quantity": "radiance"},
             "seconds": {"radiance_maps": time.perf_counter() - t0}}
     if isinstance(brdf, GGX):  # the split sum is defined for GGX (render.glossy.SplitSumMethod)
         t0 = time.perf_counter()
-        levels = int(np.log2(SPLITSUM_CUBE)) + 1
-        cube = EnvMap(prefilter_cube(env, SPLITSUM_CUBE, [brdf.alpha] * levels).levels[0], CUBE)
         rows, cols = PREFILTERED_GRID
-        pre = cube.lookup(_latlong_directions(rows, cols).reshape(-1, 3)).reshape(rows, cols, 3)
+        cube = splitsum_cube(env, brdf.alpha, SPLITSUM_CUBE)
+        pre = cube.lookup(_latlong_directions(rows, cols)).reshape(rows, cols, 3)
         part["splitsum"] = {**_write_array(folder, f"prefiltered-{index}.f32", pre), "quantity": "radiance",
                             "alpha": brdf.alpha, "dfg": dfg_terms(brdf.alpha).tolist(),
                             "f0": [float(x) for x in normal_reflectance(brdf)]}

@@ -12,13 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..engines import CHROMIUM, require_engines
+from ..engines import launch_chromium, require_engines
 from ..errors import LightprobeError
 from .server import ViewServer
-
-LAUNCH_ARGS = ["--enable-unsafe-swiftshader", "--use-angle=swiftshader", "--no-sandbox",
-               "--disable-background-networking", "--disable-component-update", "--disable-sync", "--no-first-run"]
-
 
 def _image(answer: dict) -> np.ndarray:
     data = np.frombuffer(base64.b64decode(answer["rgba"]), dtype="<f4")
@@ -58,7 +54,7 @@ class ViewerPage:
         self.errors: list[str] = []
         try:
             self.playwright = sync_playwright().start()
-            self.browser = self.playwright.chromium.launch(executable_path=CHROMIUM, args=LAUNCH_ARGS)
+            self.browser = launch_chromium(self.playwright)
             # Playwright's waiting helpers evaluate strings, which the page's own CSP forbids: the driver (not the
             # page) is let through; tests/test_viewer.py checks the CSP itself on the server's answers.
             self.page = self.browser.new_page(viewport={"width": width, "height": height}, bypass_csp=True)
