@@ -791,6 +791,7 @@ def section_batch(rep: Report) -> str:
         pool = LocalPool(os.cpu_count() or 1)
         summary = run_batch(inputs, rep.out / "batch", JobOptions(jobs=("sh", "thumbnail"), order=2), pool)
     write_report(rep.out / "batch")
+    sheet = _thumbnail_sheet(rep.out / "batch")
     rep.timings[f"batch of {len(inputs)} probes (SH + thumbnail, {summary.workers} workers)"] = summary.seconds
     rows = [["inputs", what], ["done / failed", f"{summary.done} / {summary.failed}"],
             ["throughput", f"{summary.throughput:.2f} maps/s on {summary.workers} worker processes "
@@ -800,7 +801,24 @@ def section_batch(rep: Report) -> str:
             "commands, one row per input in <a href='batch/results.parquet'>batch/results.parquet</a> (pandas, "
             "polars and DuckDB read it directly), failures in <code>batch/errors.parquet</code>, committed in chunks "
             "so a killed run resumes with <code>--resume</code>; the batch's own page is "
-            "<a href='batch/report.html'>batch/report.html</a>.</p>" + table(["", ""], rows))
+            "<a href='batch/report.html'>batch/report.html</a>.</p>" + table(["", ""], rows)
+            + rep.display_picture("batch_thumbnails", sheet, "the batch's thumbnails (tone-mapped latlong "
+                                  "128×64 each, as the workers wrote them), in path order"))
+
+
+def _thumbnail_sheet(folder: Path, columns: int = 6) -> np.ndarray:
+    """The batch's thumbnail PNGs (display-encoded, all 128×64) tiled in path order with a 2-pixel gap."""
+    import pyarrow.parquet as pq
+    from PIL import Image
+
+    rows = [r for r in pq.read_table(folder / "results.parquet", columns=["thumbnail"]).to_pylist() if r["thumbnail"]]
+    tiles = [np.asarray(Image.open(folder / r["thumbnail"]).convert("RGB"), dtype=np.float32) / 255 for r in rows]
+    h, w = tiles[0].shape[:2]
+    sheet = np.ones((-(-len(tiles) // columns) * (h + 2), columns * (w + 2), 3), np.float32)
+    for i, tile in enumerate(tiles):
+        r, c = divmod(i, columns)
+        sheet[r * (h + 2):r * (h + 2) + h, c * (w + 2):c * (w + 2) + w] = tile
+    return sheet
 
 
 SECTIONS = [section_probe, section_layouts, section_speed, section_sh, section_irradiance, section_errors,
