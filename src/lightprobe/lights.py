@@ -135,7 +135,7 @@ def decompose(env: EnvMap, params: LightParams | None = None) -> Decomposition:
     cand_theta, cand_phi = theta[cand_rows], _column_phi(cand_cols, grid[1])
     cand_dirs = _unit(cand_theta, cand_phi)
     responses = np.zeros((cand_rows.size, params.sizes))
-    _responses(prefix, theta, cand_theta, cand_phi, radii, inner, outer, params.surround_weight,
+    _responses(prefix, theta, cand_rows, cand_cols, radii, inner, outer, params.surround_weight,
                np.arange(cand_rows.size), responses)
     clock["filter"] = time.perf_counter()
 
@@ -164,7 +164,7 @@ def decompose(env: EnvMap, params: LightParams | None = None) -> Decomposition:
         rows_y[gone] = 0.0
         prefix[changed] = _row_prefix(rows_y[changed])
         near = np.nonzero(cand_dirs @ p >= math.cos(min(reach, math.pi)))[0]
-        _responses(prefix, theta, cand_theta, cand_phi, radii, inner, outer, params.surround_weight, near,
+        _responses(prefix, theta, cand_rows, cand_cols, radii, inner, outer, params.surround_weight, near,
                    responses)
     clock["extract"] = time.perf_counter()
     ambient = EnvMap(owned(data), env.layout)
@@ -222,16 +222,18 @@ def _candidates(rows_y: np.ndarray, fraction: float) -> tuple[np.ndarray, np.nda
     return np.divmod(order, w)
 
 
-def _responses(prefix, theta, cand_theta, cand_phi, radii, inner, outer, weight, which, out) -> None:
+def _responses(prefix, theta, cand_rows, cand_cols, radii, inner, outer, weight, which, out) -> None:
     """out[which] = R_k of SPEC §5 for the candidates ``which``: [I(r_i) − w (I(r_o) − I(r_i))] / (2 r_o)."""
     if which.size == 0:
         return
+    # by row, so each row's interval table is built once (stable: equal rows keep their order)
+    which = which[np.argsort(cand_rows[which], kind="stable")]
     sums = np.empty((which.size, radii.size))
     threads = min(limits.threads(), max(1, which.size // 256))
     step = -(-which.size // threads)
-    ct, cp = np.ascontiguousarray(cand_theta[which]), np.ascontiguousarray(cand_phi[which])
+    rows, cols = np.ascontiguousarray(cand_rows[which]), np.ascontiguousarray(cand_cols[which])
     with ThreadPoolExecutor(threads) as pool:
-        list(pool.map(lambda s: cap_sums(prefix, theta, ct[s:s + step], cp[s:s + step], radii, sums[s:s + step]),
+        list(pool.map(lambda s: cap_sums(prefix, theta, rows[s:s + step], cols[s:s + step], radii, sums[s:s + step]),
                       range(0, which.size, step)))
     n = inner.size
     inside, whole = sums[:, :n], sums[:, n:]
@@ -239,49 +241,63 @@ def _responses(prefix, theta, cand_theta, cand_phi, radii, inner, outer, weight,
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def cap_sums(prefix, theta, cand_theta, cand_phi, radii, out):  # pragma: no cover - compiled
+def cap_sums(prefix, theta, cand_rows, cand_cols, radii, out):  # pragma: no cover - compiled
     """out[i, k] = Σ of a lat-long's per-pixel values over the pixels whose centres lie within angle radii[k] of
-    candidate i (polar angle cand_theta[i] from +Y, azimuth cand_phi[i]). ``prefix`` (H, W + 1) holds each row's
-    prefix sums; ``theta`` the rows' centre polar angles. Per row the cap is the azimuth interval
-    |Δφ| ≤ arccos((cos r − cos θ cos θ_c) / (sin θ sin θ_c)); columns are counted by their centres."""
+    the centre of pixel (cand_rows[i], cand_cols[i]). ``prefix`` (H, W + 1) holds each row's prefix sums;
+    ``theta`` the rows' centre polar angles. Per row the cap is the azimuth interval
+    |Δφ| ≤ arccos((cos r − cos θ cos θ_c) / (sin θ sin θ_c)) around the candidate's column; columns are counted by
+    their centres. That interval's half-width depends only on the two rows, not on the column, so it is turned
+    into integer column offsets once per candidate row (candidates sorted by row pay it once per row) and each cap
+    is then two prefix-sum reads per row."""
     h, w = prefix.shape[0], prefix.shape[1] - 1
+    nk = radii.shape[0]
     dphi = 2.0 * math.pi / w
     r_max = 0.0
-    for k in range(radii.shape[0]):
+    for k in range(nk):
         r_max = max(r_max, radii[k])
     cos_r = np.cos(radii)
-    for i in range(cand_theta.shape[0]):
-        tc, pc = cand_theta[i], cand_phi[i]
-        ct, st = math.cos(tc), math.sin(tc)
-        xc = (pc + math.pi) / dphi - 0.5  # the centre's column coordinate (column j's centre at j)
-        for k in range(radii.shape[0]):
-            out[i, k] = 0.0
-        first = max(0, int(math.floor((tc - r_max) / math.pi * h)))
-        last = min(h - 1, int(math.ceil((tc + r_max) / math.pi * h)))
-        for row in range(first, last + 1):
-            c_row, s_row = math.cos(theta[row]), math.sin(theta[row])
-            full = prefix[row, w]
-            for k in range(radii.shape[0]):
+    span = int(math.ceil(r_max / math.pi * h)) + 2
+    lo_off = np.empty((2 * span + 1, nk), np.int64)  # per row of the band and radius: first and last column
+    hi_off = np.empty((2 * span + 1, nk), np.int64)  # offsets (hi < lo: no pixel; hi − lo + 1 ≥ w: the whole row)
+    current, first, last = -1, 0, -1
+    for i in range(cand_rows.shape[0]):
+        row_c = cand_rows[i]
+        if row_c != current:
+            current = row_c
+            tc = theta[row_c]
+            ct, st = math.cos(tc), math.sin(tc)
+            first = max(0, int(math.floor((tc - r_max) / math.pi * h)))
+            last = min(h - 1, int(math.ceil((tc + r_max) / math.pi * h)))
+            for row in range(first, last + 1):
+                c_row, s_row = math.cos(theta[row]), math.sin(theta[row])
                 denom = s_row * st
-                if denom <= 1e-300:  # a candidate at a pole: every pixel of a row is |θ − θ_c| from it
-                    if abs(theta[row] - tc) <= radii[k]:
-                        out[i, k] += full
+                for k in range(nk):
+                    if denom <= 1e-300:  # a pole: every pixel of a row is |θ − θ_c| from it
+                        inside = abs(theta[row] - tc) <= radii[k]
+                        lo_off[row - first, k], hi_off[row - first, k] = (0, w - 1) if inside else (1, 0)
+                        continue
+                    c = (cos_r[k] - c_row * ct) / denom
+                    if c >= 1.0:
+                        lo_off[row - first, k], hi_off[row - first, k] = 1, 0
+                    elif c <= -1.0:
+                        lo_off[row - first, k], hi_off[row - first, k] = 0, w - 1
+                    else:
+                        half = math.acos(c) / dphi
+                        lo_off[row - first, k] = int(math.ceil(-half))
+                        hi_off[row - first, k] = int(math.floor(half))
+        col = cand_cols[i]
+        for k in range(nk):
+            out[i, k] = 0.0
+        for row in range(first, last + 1):
+            full = prefix[row, w]
+            for k in range(nk):
+                lo, hi = lo_off[row - first, k], hi_off[row - first, k]
+                if hi < lo:
                     continue
-                c = (cos_r[k] - c_row * ct) / denom
-                if c >= 1.0:
-                    continue
-                if c <= -1.0:
-                    out[i, k] += full
-                    continue
-                half = math.acos(c) / dphi
-                lo = int(math.ceil(xc - half))
-                hi = int(math.floor(xc + half))
                 if hi - lo + 1 >= w:
                     out[i, k] += full
                     continue
-                if hi < lo:
-                    continue
-                lo_w, hi_w = lo % w, hi % w  # the interval may wrap across the seam
+                lo_w, hi_w = (col + lo) % w, (col + hi) % w  # the interval may wrap across the seam
                 if lo_w <= hi_w:
                     out[i, k] += prefix[row, hi_w + 1] - prefix[row, lo_w]
                 else:
