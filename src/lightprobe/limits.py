@@ -24,7 +24,9 @@ DEFAULT_MAX_TRIANGLES = 20_000_000
 _SUFFIX = {"": 1, "K": 1 << 10, "M": 1 << 20, "G": 1 << 30, "T": 1 << 40}
 
 
-def _positive_env(name: str, default: int, units: bool = False) -> int:
+def positive_env(name: str, default: int, units: bool = False) -> int:
+    """The positive whole number in environment variable ``name`` (with ``units``: bytes, a K/M/G/T suffix allowed),
+    or ``default`` when it is unset or blank; anything else is a :class:`UsageError` naming the variable."""
     text = os.environ.get(name)
     if text is None or not text.strip():
         return default
@@ -38,15 +40,15 @@ def _positive_env(name: str, default: int, units: bool = False) -> int:
 
 def threads() -> int:
     """Threads for numba's kernels and BLAS: ``LIGHTPROBE_THREADS``, or every core."""
-    return _positive_env("LIGHTPROBE_THREADS", os.cpu_count() or 1)
+    return positive_env("LIGHTPROBE_THREADS", os.cpu_count() or 1)
 
 
 def max_pixels() -> int:
-    return _positive_env("LIGHTPROBE_MAX_PIXELS", DEFAULT_MAX_PIXELS)
+    return positive_env("LIGHTPROBE_MAX_PIXELS", DEFAULT_MAX_PIXELS)
 
 
 def max_triangles() -> int:
-    return _positive_env("LIGHTPROBE_MAX_TRIANGLES", DEFAULT_MAX_TRIANGLES)
+    return positive_env("LIGHTPROBE_MAX_TRIANGLES", DEFAULT_MAX_TRIANGLES)
 
 
 def physical_memory() -> int:
@@ -80,7 +82,7 @@ def _address_space_left() -> int | None:
 def max_memory() -> int:
     """The memory budget of one command: ``LIGHTPROBE_MAX_MEMORY``, else half the physical memory — and never more
     than the address space a ``ulimit -v`` leaves (under such a cap Mitsuba and numba crash instead of raising)."""
-    budget = _positive_env("LIGHTPROBE_MAX_MEMORY", physical_memory() // 2, units=True)
+    budget = positive_env("LIGHTPROBE_MAX_MEMORY", physical_memory() // 2, units=True)
     left = _address_space_left()
     return budget if left is None else min(budget, left)
 

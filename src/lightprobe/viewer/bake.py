@@ -59,15 +59,15 @@ class BakeOptions:
 
 
 def max_triangles() -> int:
-    from ..limits import _positive_env
+    from ..limits import positive_env
 
-    return _positive_env("LIGHTPROBE_VIEW_MAX_TRIANGLES", DEFAULT_MAX_TRIANGLES)
+    return positive_env("LIGHTPROBE_VIEW_MAX_TRIANGLES", DEFAULT_MAX_TRIANGLES)
 
 
 def max_pixels() -> int:
-    from ..limits import _positive_env
+    from ..limits import positive_env
 
-    return _positive_env("LIGHTPROBE_VIEW_MAX_PIXELS", DEFAULT_MAX_PIXELS)
+    return positive_env("LIGHTPROBE_VIEW_MAX_PIXELS", DEFAULT_MAX_PIXELS)
 
 
 def check_inputs(probe: Path, mesh: Path | None) -> None:
