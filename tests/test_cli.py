@@ -139,9 +139,12 @@ def test_demo_writes_a_report_with_pictures(tmp_path, capsys):
                  "engine_babylon_own_toward"):  # spheres drawn by three.js and Babylon.js themselves
         assert f"{name}.png" in index and (tmp_path / "report" / f"{name}.png").stat().st_size > 1000
     assert "Babylon.js 9.35 (Node, default SH path)" in index
-    for name in ("glossy_sources", "glossy_synthesised", "glossy_direct", "glossy_conductorgold_reference",
-                 "glossy_conductorgold_rsibr_per-pixel-view", "glossy_conductorgold_splitsum",
-                 "glossy_plastic_reference", "glossy_plastic_rsibr"):  # the glossy section
+    glossy = ["glossy_sources", "glossy_synthesised", "glossy_direct"]
+    for obj in ("sphere", "teapot", "bunny"):  # the teapot and bunny from ../shared/data, which the tests have
+        glossy += [f"glossy_{obj}_conductorgold_reference", f"glossy_{obj}_conductorgold_rsibr_per-pixel-view",
+                   f"glossy_{obj}_conductorgold_splitsum", f"glossy_{obj}_plastic_reference",
+                   f"glossy_{obj}_plastic_rsibr"]
+    for name in glossy:  # the glossy section
         assert f"{name}.png" in index and (tmp_path / "report" / f"{name}.png").stat().st_size > 500
 
 

@@ -493,6 +493,14 @@ def _babylon_containers(rep: Report, page, server, folder: Path, sh, babylon: di
     return pictures, text
 
 
+def _shared_data() -> Path:
+    """The test-data folder beside the repository (``LIGHTPROBE_SHARED_DATA`` overrides it); it may be absent, and
+    its Stanford meshes may not be shipped, so sections use it when it is there and fall back when it is not."""
+    import os
+
+    return Path(os.environ.get("LIGHTPROBE_SHARED_DATA", Path(__file__).resolve().parents[3] / "shared" / "data"))
+
+
 def _demo_scene(rep: Report):
     """The bunny on a ground plane if ../shared/data is beside the project (Stanford data may not be shipped),
     else the built-in sphere-and-torus scene; the environment turned so the sun is behind the camera's left."""
@@ -501,8 +509,7 @@ def _demo_scene(rep: Report):
 
     from .render.scene import builtin_scene, mesh_scene
 
-    shared = Path(os.environ.get("LIGHTPROBE_SHARED_DATA", Path(__file__).resolve().parents[3] / "shared" / "data"))
-    bunny = shared / "meshes" / "stanford" / "bun_zipper.ply"
+    bunny = _shared_data() / "meshes" / "stanford" / "bun_zipper.ply"
     if bunny.is_file():
         return mesh_scene(bunny, rep.env, 192, 192), "the Stanford bunny (69k triangles) on a grey ground plane"
     return builtin_scene(rep.env, 192, 192), "the built-in sphere and torus (the bunny lives in ../shared/data)"
@@ -623,7 +630,6 @@ def section_glossy(rep: Report) -> str:
     from .render.raycast import Tracer
     from .render.reference import mitsuba, reference_render
     from .render.renderer import render
-    from .render.scene import sphere_scene
     from .rsibr import synthesize
 
     t0 = time.perf_counter()
@@ -655,10 +661,10 @@ def section_glossy(rep: Report) -> str:
         return (f"<h2>Glossy reflection (Cabral, Olano &amp; Nemec 1999)</h2>{html_maps}<p>The Mitsuba reference "
                 f"is not available ({html.escape(str(e))}).</p>")
     rows, pictures = [], []
-    for spec in GLOSSY_DEMO:
-        scene = sphere_scene(rep.env, 64)
-        mesh = scene.meshes[0]
-        scene = replace(scene, meshes=(replace(mesh, material=replace(mesh.material, brdf=parse_brdf(spec))),))
+    objects = _glossy_objects(rep)
+    for (obj, base), spec in ((o, spec) for o in objects for spec in GLOSSY_DEMO):
+        mesh = base.meshes[0]
+        scene = replace(base, meshes=(replace(mesh, material=replace(mesh.material, brdf=parse_brdf(spec))),))
         tracer = Tracer(scene)
         rsibr = method("rsibr", map_size=32)
         methods = {"rsibr": rsibr, "rsibr --per-pixel-view": method("rsibr", map_size=32, per_pixel_view=True)}
@@ -669,18 +675,18 @@ def section_glossy(rep: Report) -> str:
         results["reference"] = reference_render(scene, spp=96)
         ref = results["reference"].image
         shown = auto_exposure(ref) + 0.5
-        tag = spec.split(":")[0] if spec.startswith("plastic") else spec.split(",")[-1].replace("=", "")
+        tag = obj + "_" + (spec.split(":")[0] if spec.startswith("plastic") else spec.split(",")[-1].replace("=", ""))
         for name, r in results.items():
-            pictures.append(rep.picture(f"glossy_{tag}_{name.replace(' --', '_')}", r.image, f"{spec}: {name}", shown,
-                                        width=160))
+            pictures.append(rep.picture(f"glossy_{tag}_{name.replace(' --', '_')}", r.image,
+                                        f"{obj}, {spec}: {name}", shown, width=160))
         for name in methods:
             m = compare(results[name].image, ref)
-            rows.append([spec, name, f"{m.relative_mse:.4f}", f"{m.flip:.3f}",
+            rows.append([obj, spec, name, f"{m.relative_mse:.4f}", f"{m.flip:.3f}",
                          f"{1000 * sum(results[name].seconds.values()):.0f} ms"])
         pictures.append(rep.display_picture(f"glossy_{tag}_error", error_heatmap(results["rsibr --per-pixel-view"]
                                                                                  .image, ref, 0.5),
-                                            f"{spec}: rsibr --per-pixel-view vs reference (black 0 → white ≥ 50 %)",
-                                            width=160))
+                                            f"{obj}, {spec}: rsibr --per-pixel-view vs reference (black 0 → white "
+                                            "≥ 50 %)", width=160))
     return ("<h2>Glossy reflection (Cabral, Olano &amp; Nemec 1999)</h2>"
             "<p>Radiance environment maps hold, for one view, the light every surface normal sends toward the eye "
             "through a BRDF; lightprobe computes them exactly (a compiled sum over a pyramid level fine enough for "
@@ -688,12 +694,34 @@ def section_glossy(rep: Report) -> str:
             " s) and synthesises any other view from the three around it by the paper's warp and spherical "
             f"barycentric blend ({1000 * rep.timings['synthesis of one map 40²']:.0f} ms; relative RMSE "
             f"{100 * rel_rmse:.1f} % against the direct map for this view).</p>" + html_maps
-            + "<p>A sphere of each material under the probe (no shadows are involved): <em>rsibr</em> one "
+            + f"<p>{_glossy_caption(objects)} of each material under the probe: <em>rsibr</em> one "
             "synthesised map per frame (the paper's orthographic approximation), <em>rsibr --per-pixel-view</em> "
             "each pixel blended for its own view, <em>splitsum</em> the prefiltered-map approximation engines "
-            "ship (for GGX), and Mitsuba 3's roughconductor and roughplastic as the reference.</p>"
+            "ship (for GGX), and Mitsuba 3's roughconductor and roughplastic as the reference. None of the methods "
+            "knows of the mesh's own occlusion (the teapot's spout and handle, the bunny's ears: the reference's "
+            "shadows and interreflections there are what they miss); on the sphere there is none.</p>"
             '<div class="grid">' + "".join(pictures) + "</div>"
-            + table(["material", "method", "relative MSE", "HDR-FLIP", "time"], rows))
+            + table(["object", "material", "method", "relative MSE", "HDR-FLIP", "time"], rows))
+
+
+def _glossy_objects(rep: Report) -> list:
+    """(name, scene) of the glossy renders, 64² and without ground: a sphere (no self-occlusion), and the Newell
+    teapot and the Stanford bunny when ../shared/data is beside the project (neither is shipped)."""
+    from .render.scene import mesh_scene, sphere_scene
+
+    objects = [("sphere", sphere_scene(rep.env, 64))]
+    meshes = _shared_data() / "meshes"
+    for name, path in (("teapot", meshes / "teapot" / "teapot.obj"),
+                       ("bunny", meshes / "stanford" / "bun_zipper_res2.ply")):
+        if path.is_file():
+            objects.append((name, mesh_scene(path, rep.env, 64, 64, ground=False, turn_to_key_light=False)))
+    return objects
+
+
+def _glossy_caption(objects: list) -> str:
+    names = [name for name, _ in objects]
+    found = "A sphere" if len(names) == 1 else "A sphere, " + " and ".join(f"the {n}" for n in names[1:])
+    return found + ("" if len(names) > 1 else " (the teapot and the bunny live in ../shared/data)")
 
 
 VIEWER_STATES = [  # (file name, caption, page state): what the viewer section shows, each taken from the live page
@@ -764,7 +792,7 @@ def section_viewer(rep: Report) -> str:
 def _demo_probes(rep: Report, folder: Path) -> tuple[list[str], str]:
     """Every probe file of ../shared/data beside the repository, or (without it) the shipped probe and seven
     rotated copies of it written into ``folder``."""
-    shared = Path(os.environ.get("LIGHTPROBE_SHARED_DATA", Path(__file__).resolve().parents[3] / "shared" / "data"))
+    shared = _shared_data()
     found = sorted(str(p) for sub in ("debevec", "ict_lowres", "polyhaven_1k") for p in (shared / sub).rglob("*")
                    if p.suffix.lower() in (".hdr", ".exr") and p.is_file())
     if found:
