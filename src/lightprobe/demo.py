@@ -496,17 +496,12 @@ def _babylon_containers(rep: Report, page, server, folder: Path, sh, babylon: di
 def _shared_data() -> Path:
     """The test-data folder beside the repository (``LIGHTPROBE_SHARED_DATA`` overrides it); it may be absent, and
     its Stanford meshes may not be shipped, so sections use it when it is there and fall back when it is not."""
-    import os
-
     return Path(os.environ.get("LIGHTPROBE_SHARED_DATA", Path(__file__).resolve().parents[3] / "shared" / "data"))
 
 
 def _demo_scene(rep: Report):
     """The bunny on a ground plane if ../shared/data is beside the project (Stanford data may not be shipped),
     else the built-in sphere-and-torus scene; the environment turned so the sun is behind the camera's left."""
-    import os
-    from pathlib import Path
-
     from .render.scene import builtin_scene, mesh_scene
 
     bunny = _shared_data() / "meshes" / "stanford" / "bun_zipper.ply"
