@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from conftest import shared
 from lightprobe import read_envmap
@@ -37,6 +39,31 @@ def test_cap_sums_are_the_sums_over_the_pixels_in_the_cap():
     for i, (r, c) in enumerate(zip(rows, cols)):
         want = [values[dirs @ dirs[r, c] >= np.cos(radius)].sum() for radius in radii]
         np.testing.assert_allclose(got[i], want, rtol=0, atol=1e-9)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(4, 40), st.integers(0, 2**32 - 1))
+def test_cap_sums_match_brute_force_on_any_grid(h, seed):
+    """Any grid height (odd widths included), candidates anywhere and radii from under a pixel to past a
+    hemisphere: the row-offset sums equal the brute-force sums (radii kept off pixel rims, where both are
+    rounding)."""
+    rng = np.random.default_rng(seed)
+    w = 2 * h + int(rng.integers(0, 2))
+    values = rng.random((h, w))
+    theta = (np.arange(h) + 0.5) / h * np.pi
+    rows, cols = rng.integers(0, h, 12), rng.integers(0, w, 12)
+    dirs = _latlong_directions(h, w)
+    radii = np.sort(rng.uniform(0.001, 3.1, 6))
+    cosines = np.einsum("ijk,nk->nij", dirs, dirs[rows, cols])
+    for _ in range(20):  # move a radius whose cap rim passes within 1e-9 of a pixel centre
+        near = np.abs(cosines[..., None] - np.cos(radii)).min(axis=(0, 1, 2)) < 1e-9
+        if not near.any():
+            break
+        radii[near] += 1e-6
+    got = np.empty((rows.size, radii.size))
+    cap_sums(_row_prefix(values), theta, rows, cols, radii, got)
+    want = np.array([[values[cosines[i] >= np.cos(r)].sum() for r in radii] for i in range(rows.size)])
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)
 
 
 def _sky_with_sun(direction, radius_deg=3.0, h=256):
