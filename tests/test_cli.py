@@ -161,3 +161,38 @@ def test_demo_fails_when_the_reference_fails(tmp_path, monkeypatch):
     with pytest.raises(RuntimeError, match="reference broke"):
         demo.run_demo(read_envmap(shared("ict_lowres/grace.hdr")), tmp_path / "r")
     assert not (tmp_path / "r").exists()
+
+
+@pytest.mark.parametrize("status", [0, 2, 130])
+def test_the_command_exits_quickly_with_its_status_and_its_output(tmp_path, status):
+    """``entry`` skips Python's finalisation once numba has run a kernel (an atexit handler registered before it
+    does not run: the exit was quick), yet keeps main's exit status, the text it printed without a newline
+    (unflushed), and the atexit handlers registered after it (a file they write)."""
+    marker, earlier = tmp_path / "handler-ran", tmp_path / "earlier-ran"
+    program = f"""
+import atexit, sys
+atexit.register(lambda: open({str(earlier)!r}, "w").write("ran"))
+import lightprobe.cli as cli
+from lightprobe.lights import cap_sums, _row_prefix
+import numpy as np
+
+def fake_main():
+    out = np.zeros((1, 1))
+    cap_sums(_row_prefix(np.ones((4, 8))), (np.arange(4) + 0.5) / 4 * np.pi, np.array([1]), np.array([2]),
+             np.array([0.5]), out)  # numba now runs: the quick exit applies
+    atexit.register(lambda: open({str(marker)!r}, "w").write("ran"))
+    sys.stdout.write(f"sum {{out[0, 0]:.0f}} no newline")
+    return {status}
+
+cli.main = fake_main
+cli.entry()
+"""
+    res = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True)
+    assert res.returncode == status, res.stderr
+    assert res.stdout == "sum 1 no newline" and "numba" not in res.stderr
+    assert marker.read_text() == "ran" and not earlier.exists()
+
+
+def test_the_console_script_is_the_quick_entry():
+    text = (Path(__file__).resolve().parents[1] / "pyproject.toml").read_text()
+    assert 'lightprobe = "lightprobe.cli:entry"' in text
