@@ -244,3 +244,38 @@ def test_resume_refuses_another_version_unless_forced(tmp_path, capsys):
     assert main(["batch", *args, "--resume", "--force"]) == 0
     assert len(table(out)) == 1
     assert main(["batch", *args[:3], "--jobs", "sh,lights", "--resume", "--force"]) == 2  # other options
+
+
+@pytest.mark.parametrize("damage", ["truncated", "not parquet", "other columns", "foreign name"])
+def test_resume_on_a_damaged_part_is_one_line_and_redoes_it_once_set_aside(tmp_path, capsys, damage):
+    """Parts are renamed into place whole, so only something outside the batch damages one; --resume then stops
+    with one line naming the file (no traceback, nothing changed), and once the file is moved out, redoes the
+    inputs it held — each input still once in the table."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    for i in range(3):
+        write_image(tmp_path / f"m{i}.hdr", np.full((8, 16, 3), 1.0 + i, np.float32))
+    out = tmp_path / "o"
+    args = [*(str(tmp_path / f"m{i}.hdr") for i in range(3)), "--out", str(out), "--jobs", "sh", "--workers", "1"]
+    assert main(["batch", *args]) == 0
+    capsys.readouterr()
+    part = sorted((out / "parts").glob("rows-*.parquet"))[0]
+    if damage == "truncated":
+        part.write_bytes(part.read_bytes()[:100])
+    elif damage == "not parquet":
+        part.write_text("hello")
+    elif damage == "other columns":
+        pq.write_table(pa.table({"path": ["x"], "nonsense": [1]}), part)
+    else:
+        part = out / "parts" / "rows-abc-x.parquet"
+        part.write_text("x")
+    before = sorted(p.name for p in (out / "parts").iterdir())
+    assert main(["batch", *args, "--resume"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(part) in err[0] and "Traceback" not in err[0], err
+    assert sorted(p.name for p in (out / "parts").iterdir()) == before
+    part.rename(tmp_path / "set-aside.parquet")
+    assert main(["batch", *args, "--resume"]) == 0
+    rows = table(out)
+    assert sorted(Path(r["path"]).name for r in rows) == ["m0.hdr", "m1.hdr", "m2.hdr"]

@@ -24,12 +24,14 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import secrets
 from pathlib import Path
 
 from ..errors import UsageError
 
 FORMAT, VERSION, SCHEMA_VERSION = "lightprobe.batch", 1, 1
+PART_NAME = re.compile(r"(rows|errors)-(\d{6,})-([0-9a-f]{8})\.parquet")  # what Parts.commit names a part
 JOB_NAMES = ("read", "sh", "lights", "irradiance", "radiance", "thumbnail")
 
 
@@ -109,7 +111,15 @@ class Parts:
         self.order = order
         for stale in self.folder.glob(".*.tmp"):  # a part being written when the driver died: never committed
             stale.unlink(missing_ok=True)
-        self.sequence = 1 + max((int(p.name.split("-")[1]) for p in self.folder.glob("*-*-*.parquet")), default=0)
+        numbers = []
+        for path in self.folder.iterdir():
+            match = PART_NAME.fullmatch(path.name)
+            if match is None and not path.name.startswith("."):
+                raise UsageError(f"{path} is not a part this batch wrote (rows-NNNNNN-xxxxxxxx.parquet or "
+                                 "errors-…): move it out of the folder to resume")
+            if match is not None:
+                numbers.append(int(match.group(2)))
+        self.sequence = 1 + max(numbers, default=0)
 
     def commit(self, kind: str, rows: list[dict]) -> Path | None:
         """Write ``rows`` as one part (``kind`` rows or errors): to a temporary name, fsync, rename."""
@@ -129,11 +139,30 @@ class Parts:
         return self.folder / name
 
     def read(self, kind: str):
-        """Every committed part of ``kind`` as one table (empty with the schema when none)."""
+        """Every committed part of ``kind`` as one table (empty with the schema when none). A part that does not
+        read back with the schema — parts are renamed into place whole, so only something outside the batch
+        damages one — stops the run with one line naming it."""
         pa, pq = _pa()
         schema = row_schema(self.order) if kind == "rows" else error_schema()
-        tables = [pq.read_table(p, schema=schema) for p in sorted(self.folder.glob(f"{kind}-*.parquet"))]
+        tables = []
+        for path in sorted(self.folder.glob(f"{kind}-*.parquet")):
+            try:
+                _check_columns(pq.read_schema(path), schema)  # read_table would fill missing columns with nulls
+                tables.append(pq.read_table(path, schema=schema))
+            except (pa.ArrowException, OSError, ValueError) as e:
+                reason = " ".join(str(e).split())[:200]
+                raise UsageError(f"{path} is damaged ({reason}): move it out of the folder and resume with "
+                                 "--resume, which redoes its inputs") from None
         return pa.concat_tables(tables) if tables else schema.empty_table()
+
+
+def _check_columns(found, wanted) -> None:
+    """ValueError unless schema ``found`` has every column of ``wanted``, each of its type."""
+    for field in wanted:
+        index = found.get_field_index(field.name)
+        if index < 0 or not found.field(index).type.equals(field.type):
+            got = "missing" if index < 0 else str(found.field(index).type)
+            raise ValueError(f"column {field.name}: {got}, not {field.type}")
 
 
 def _fsync_folder(folder: Path) -> None:
