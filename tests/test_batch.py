@@ -279,3 +279,18 @@ def test_resume_on_a_damaged_part_is_one_line_and_redoes_it_once_set_aside(tmp_p
     assert main(["batch", *args, "--resume"]) == 0
     rows = table(out)
     assert sorted(Path(r["path"]).name for r in rows) == ["m0.hdr", "m1.hdr", "m2.hdr"]
+
+
+def test_impossible_paths_in_a_list_are_errors_of_their_own(tmp_path, capsys):
+    """A listed path no file can have (a NUL byte, a name over the system's limit) or a folder is that input's
+    error in errors.parquet, and the run goes on (it used to end with a traceback on the NUL byte)."""
+    write_image(tmp_path / "good.hdr", np.ones((8, 16, 3), np.float32))
+    (tmp_path / "folder.hdr").mkdir()
+    listing = tmp_path / "inputs.txt"
+    listing.write_text(f"a\x00b.hdr\n{'n' * 5000}.hdr\nfolder.hdr\ngood.hdr\n")
+    out = tmp_path / "o"
+    assert main(["batch", f"@{listing}", "--out", str(out), "--jobs", "sh", "--workers", "1"]) == 0
+    assert [Path(r["path"]).name for r in table(out)] == ["good.hdr"]
+    errors = table(out, "errors.parquet")
+    assert len(errors) == 3 and {e["error_class"] for e in errors} == {"InputError"}
+    assert any("null byte" in e["message"] for e in errors)

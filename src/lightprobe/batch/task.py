@@ -68,9 +68,10 @@ def process(path: str, options: JobOptions, out: str, skip: frozenset = frozense
     base = {"path": path, "worker": f"{socket.gethostname()}:{os.getpid()}"}
     try:
         digest, size = file_digest(Path(path))
-    except OSError as e:
+    except (OSError, ValueError) as e:  # ValueError: a listed path with a NUL byte, which no file can have
         return {**base, "kind": "error", "error_class": "InputError",
-                "message": f"cannot read {path}: {e.strerror or e}", "sha256": None, "size": None}
+                "message": f"cannot read {path!r}: {getattr(e, 'strerror', None) or e}", "sha256": None,
+                "size": None}
     base.update(sha256=digest, size=size)
     if digest in skip:
         return {**base, "kind": "skipped"}
