@@ -294,3 +294,24 @@ def test_impossible_paths_in_a_list_are_errors_of_their_own(tmp_path, capsys):
     errors = table(out, "errors.parquet")
     assert len(errors) == 3 and {e["error_class"] for e in errors} == {"InputError"}
     assert any("null byte" in e["message"] for e in errors)
+
+
+def test_report_on_a_damaged_table_is_one_line_and_resume_writes_it_again(tmp_path, capsys):
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    write_image(tmp_path / "m.hdr", np.ones((8, 16, 3), np.float32))
+    out = tmp_path / "o"
+    args = [str(tmp_path / "m.hdr"), "--out", str(out), "--jobs", "sh", "--workers", "1"]
+    assert main(["batch", *args]) == 0
+    for damage in (b"garbage", None):
+        if damage is None:
+            pq.write_table(pa.table({"path": ["x"]}), out / "results.parquet")  # a table, not ours
+        else:
+            (out / "results.parquet").write_bytes(damage)
+        capsys.readouterr()
+        assert main(["batch", "--report", str(out)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "results.parquet is not a lightprobe batch table" in err[0], err
+    assert main(["batch", *args, "--resume"]) == 0
+    assert main(["batch", "--report", str(out)]) == 0 and len(table(out)) == 1

@@ -39,13 +39,14 @@ def _svg_histogram(values, title: str, bins, log_x: bool = False) -> str:
 
 def write_report(out: Path) -> Path:
     """Write ``out``/report.html from ``results.parquet`` and ``errors.parquet``."""
-    import pyarrow.parquet as pq
+    from .table import read_finished
 
     out = Path(out)
     if not (out / "results.parquet").is_file():
         raise UsageError(f"{out} holds no finished batch (no results.parquet): run lightprobe batch first")
-    rows = pq.read_table(out / "results.parquet").to_pylist()
-    errors = pq.read_table(out / "errors.parquet").to_pylist() if (out / "errors.parquet").is_file() else []
+    rows = read_finished(out / "results.parquet", "rows").to_pylist()
+    errors = (read_finished(out / "errors.parquet", "errors").to_pylist() if (out / "errors.parquet").is_file()
+              else [])
     power = [float(np.asarray(r["integral"]) @ LUMA) for r in rows if r.get("integral")]
     counts = [r["light_count"] for r in rows if r.get("light_count") is not None]
     thumbs = "".join(

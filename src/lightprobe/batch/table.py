@@ -156,6 +156,31 @@ class Parts:
         return pa.concat_tables(tables) if tables else schema.empty_table()
 
 
+def read_finished(path: Path, kind: str):
+    """A consolidated ``results.parquet`` (``kind`` "rows") or ``errors.parquet`` ("errors"), checked against its
+    schema (the SH order from the file's own metadata): a :class:`UsageError` naming the file when it is not one
+    this batch format writes."""
+    pa, pq = _pa()
+    try:
+        found = pq.read_schema(path)
+        schema = row_schema(_order_of(found)) if kind == "rows" else error_schema()
+        _check_columns(found, schema)
+        return pq.read_table(path, schema=schema)
+    except (pa.ArrowException, OSError, ValueError) as e:
+        reason = " ".join(str(e).split())[:200]
+        raise UsageError(f"{path} is not a lightprobe batch table ({reason}): rerun the batch with --resume, "
+                         "which writes it again from its parts") from None
+
+
+def _order_of(schema) -> int | None:
+    text = (schema.metadata or {}).get(b"lightprobe.sh_order", b"").decode("utf-8", "replace")
+    if not text:
+        return None
+    if not text.isdigit() or int(text) > 64:
+        raise ValueError(f"SH order {text[:20]!r} in its metadata")
+    return int(text)
+
+
 def _check_columns(found, wanted) -> None:
     """ValueError unless schema ``found`` has every column of ``wanted``, each of its type."""
     for field in wanted:
