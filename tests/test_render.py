@@ -232,3 +232,34 @@ def test_render_cli(tmp_path, capsys):
     with pytest.raises(InputError):
         from lightprobe.render.scene import load_mesh
         load_mesh(tmp_path / "r.exr")
+
+
+@pytest.mark.parametrize("name, content, words", [
+    ("binary.obj", bytes(range(256)) * 8, "not a text OBJ file (bytes that are not UTF-8 at offset 128)"),
+    ("hole.obj", b"v 1 2 3\nf 1 2 3\n", "a face names a vertex that is not in the file"),
+    ("short.ply", b"ply\nformat ascii 1.0\nelement vertex 3\nend_header\n", "malformed PLY"),
+    ("empty.obj", b"", "cannot read mesh"),
+])
+def test_a_bad_mesh_file_is_one_line_that_says_what_is_wrong(tmp_path, capsys, name, content, words):
+    """trimesh's own messages name its internals (a missing encoding guesser, an index out of bounds); the
+    command says what is wrong with the file instead, in one line, exit 2."""
+    from test_cli import run
+
+    (tmp_path / name).write_bytes(content)
+    code, _, err = run(capsys, "render", tmp_path / name, "-o", tmp_path / "r.exr", "--size", "16x16")
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1 and words in lines[0] and "module" not in lines[0], lines
+    assert not (tmp_path / "r.exr").exists()
+
+
+@pytest.mark.parametrize("chunk", [1, 3, 7, 87, 1 << 20])
+def test_the_utf8_check_names_the_first_bad_byte_whatever_the_chunks(tmp_path, chunk):
+    from lightprobe.render.scene import _check_utf8
+
+    for junk in (b"\xff", "é".encode()[:1] + b"A"):  # a bad byte; a character cut short
+        data = b"v 1 2 3\n" * 10 + "é".encode() * 3 + junk
+        (tmp_path / "m.obj").write_bytes(data)
+        with pytest.raises(InputError, match=r"at offset 86\)"):
+            _check_utf8(tmp_path / "m.obj", chunk=chunk)
+    (tmp_path / "m.obj").write_bytes(b"v 1 2 3\n" + "é".encode() * 5)
+    _check_utf8(tmp_path / "m.obj", chunk=chunk)  # multi-byte characters across chunks are fine

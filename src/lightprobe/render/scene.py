@@ -148,17 +148,21 @@ def mesh_instance(vertices, faces, material: Material = Material(), normals=None
     return MeshInstance(v, f, n, material, None if uv is None else np.asarray(uv, dtype=np.float64), name)
 
 
+TEXT_MESH_SUFFIXES = (".obj", ".off")  # formats that are text only (PLY and STL may be binary)
+
+
 def load_mesh(path: str | os.PathLike, material: Material = Material()) -> MeshInstance:
     """A mesh file (OBJ, PLY, STL, glTF/GLB, OFF …) through trimesh, as one triangle mesh with smooth normals."""
     import trimesh
 
     path = Path(path)
     check_regular_file(path, "mesh")
+    if path.suffix.lower() in TEXT_MESH_SUFFIXES:  # trimesh would guess an encoding with a package we do not ship
+        _check_utf8(path)
     try:
         loaded = trimesh.load(str(path), force="mesh", process=False)
     except Exception as e:  # trimesh raises many kinds of errors for bad files
-        raise InputError(f"cannot read mesh {path}: {str(e).splitlines()[0] if str(e) else type(e).__name__}") \
-            from None
+        raise InputError(f"cannot read mesh {path}: {_mesh_error(path, e)}") from None
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
         raise InputError(f"cannot read mesh {path}: no triangles in it")
     if len(loaded.faces) > max_triangles():
@@ -174,6 +178,39 @@ def load_mesh(path: str | os.PathLike, material: Material = Material()) -> MeshI
             texture = srgb_decode(np.asarray(image.convert("RGB"), dtype=np.float32) / 255.0)
     mat = replace(material, texture=texture if texture is not None else material.texture)
     return mesh_instance(loaded.vertices, loaded.faces, mat, uv=uv, name=path.stem)
+
+
+def _check_utf8(path: Path, chunk: int = 1 << 24) -> None:
+    """InputError unless the file is UTF-8 text (decoded in chunks: a large OBJ is not held twice)."""
+    import codecs
+
+    decoder, offset = codecs.getincrementaldecoder("utf-8")(), 0
+    with open(path, "rb") as f:
+        while True:
+            block = f.read(chunk)
+            pending = len(decoder.getstate()[0])  # the bytes of a character cut by the last block, decoded with this
+            try:
+                decoder.decode(block, final=not block)
+            except UnicodeDecodeError as e:
+                raise InputError(f"cannot read mesh {path}: not a text {path.suffix[1:].upper()} file (bytes that "
+                                 f"are not UTF-8 at offset {offset - pending + e.start})") from None
+            if not block:
+                return
+            offset += len(block)
+
+
+def _mesh_error(path: Path, e: Exception) -> str:
+    """What was wrong with a mesh file trimesh could not load, in words (its own messages name its internals: a
+    missing text-encoding guesser for bytes that are not UTF-8, an index out of bounds for a face's bad vertex)."""
+    kind = path.suffix.lstrip(".").upper() or "mesh"
+    if isinstance(e, ImportError):
+        return f"not a readable {kind} file (text that is not UTF-8, or binary data where text was expected)"
+    if isinstance(e, IndexError):
+        return f"a face names a vertex that is not in the file ({kind})"
+    if isinstance(e, KeyError):
+        return f"malformed {kind}: no {e} where one was expected"
+    text = str(e).splitlines()[0] if str(e).strip() else type(e).__name__
+    return f"malformed {kind}: {text[:200]}"
 
 
 def transformed(mesh: MeshInstance, scale: float = 1.0, rotation=None, translate=(0.0, 0.0, 0.0)) -> MeshInstance:
