@@ -8,7 +8,6 @@ scale or fit can never make geometry silently vanish.
 
 from __future__ import annotations
 
-import json
 import os
 from dataclasses import dataclass, field, replace
 from pathlib import Path
