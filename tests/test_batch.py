@@ -315,3 +315,24 @@ def test_report_on_a_damaged_table_is_one_line_and_resume_writes_it_again(tmp_pa
         assert len(err) == 1 and "results.parquet is not a lightprobe batch table" in err[0], err
     assert main(["batch", *args, "--resume"]) == 0
     assert main(["batch", "--report", str(out)]) == 0 and len(table(out)) == 1
+
+
+def test_devices_and_fifos_are_refused_not_read_forever(tmp_path, capsys):
+    """``@/dev/zero`` as the list, or a FIFO, would never end (or block): one line. ``/dev/zero`` or a FIFO among
+    the inputs is that input's error; the others are done."""
+    os.mkfifo(tmp_path / "fifo.txt")
+    for listing in ("/dev/zero", str(tmp_path / "fifo.txt")):
+        t0 = time.perf_counter()
+        assert main(["batch", f"@{listing}", "--out", str(tmp_path / "o"), "--jobs", "sh"]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "not a regular file" in err[0] and time.perf_counter() - t0 < 10, err
+    write_image(tmp_path / "good.hdr", np.ones((8, 16, 3), np.float32))
+    os.mkfifo(tmp_path / "pipe.hdr")
+    out = tmp_path / "o2"
+    t0 = time.perf_counter()
+    assert main(["batch", "/dev/zero", str(tmp_path / "pipe.hdr"), str(tmp_path / "good.hdr"), "--out", str(out),
+                 "--jobs", "sh", "--workers", "1"]) == 0
+    assert time.perf_counter() - t0 < 60
+    assert [Path(r["path"]).name for r in table(out)] == ["good.hdr"]
+    errors = table(out, "errors.parquet")
+    assert len(errors) == 2 and all("not a regular file" in e["message"] for e in errors), errors

@@ -15,6 +15,7 @@ Every output of lightprobe goes through :func:`atomic_path` (or :func:`write_tex
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import re
 import secrets
@@ -172,7 +173,13 @@ def _umask() -> int:
 
 
 def digest_file(path: str | os.PathLike, digest) -> int:
-    """Feed the file's bytes to ``digest`` (a hashlib object) in 1 MiB blocks; returns how many bytes there were."""
+    """Feed the file's bytes to ``digest`` (a hashlib object) in 1 MiB blocks; returns how many bytes there were.
+    Only a regular file: a FIFO would block the open and a device (``/dev/zero``) never end (an OSError)."""
+    import stat
+
+    if not stat.S_ISREG(os.stat(path).st_mode):
+        raise IsADirectoryError(errno.EISDIR, "a folder, not a file", str(path)) if os.path.isdir(path) else \
+            OSError(errno.EINVAL, "not a regular file (a FIFO, device or socket)", str(path))
     size = 0
     with open(path, "rb") as f:
         for block in iter(lambda: f.read(1 << 20), b""):

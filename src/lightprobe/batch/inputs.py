@@ -11,9 +11,16 @@ from ..errors import UsageError
 
 LIST_SUFFIXES = (".txt", ".lst", ".list")
 MAX_INPUTS = 10_000_000
+MAX_LIST_BYTES = 1 << 30  # a list of inputs: 10⁷ paths of 100 characters
 
 
 def _from_list(path: Path) -> list[str]:
+    from ..io import check_regular_file
+
+    check_regular_file(path, "the list of inputs")  # /dev/zero or a FIFO would never end
+    if path.stat().st_size > MAX_LIST_BYTES:
+        raise UsageError(f"the list of inputs {path} is {path.stat().st_size} bytes, over the limit of "
+                         f"{MAX_LIST_BYTES} (split it)")
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as e:
