@@ -142,17 +142,11 @@ class Parts:
         """Every committed part of ``kind`` as one table (empty with the schema when none). A part that does not
         read back with the schema — parts are renamed into place whole, so only something outside the batch
         damages one — stops the run with one line naming it."""
-        pa, pq = _pa()
+        pa, _ = _pa()
         schema = row_schema(self.order) if kind == "rows" else error_schema()
-        tables = []
-        for path in sorted(self.folder.glob(f"{kind}-*.parquet")):
-            try:
-                _check_columns(pq.read_schema(path), schema)  # read_table would fill missing columns with nulls
-                tables.append(pq.read_table(path, schema=schema))
-            except (pa.ArrowException, OSError, ValueError) as e:
-                reason = " ".join(str(e).split())[:200]
-                raise UsageError(f"{path} is damaged ({reason}): move it out of the folder and resume with "
-                                 "--resume, which redoes its inputs") from None
+        tables = [_read_checked(path, lambda found, s=schema: s, "is damaged", "move it out of the folder and "
+                                "resume with --resume, which redoes its inputs")
+                  for path in sorted(self.folder.glob(f"{kind}-*.parquet"))]
         return pa.concat_tables(tables) if tables else schema.empty_table()
 
 
@@ -160,16 +154,24 @@ def read_finished(path: Path, kind: str):
     """A consolidated ``results.parquet`` (``kind`` "rows") or ``errors.parquet`` ("errors"), checked against its
     schema (the SH order from the file's own metadata): a :class:`UsageError` naming the file when it is not one
     this batch format writes."""
+    return _read_checked(path, lambda found: row_schema(_order_of(found)) if kind == "rows" else error_schema(),
+                         "is not a lightprobe batch table", "rerun the batch with --resume, which writes it again "
+                         "from its parts")
+
+
+def _read_checked(path: Path, schema_for, what: str, remedy: str):
+    """The Parquet file ``path`` read with the schema ``schema_for(its own schema)`` gives, once every column of
+    that schema is there with its type (read_table alone would fill missing columns with nulls); anything else is
+    a :class:`UsageError`: "``path`` ``what`` (reason): ``remedy``"."""
     pa, pq = _pa()
     try:
         found = pq.read_schema(path)
-        schema = row_schema(_order_of(found)) if kind == "rows" else error_schema()
+        schema = schema_for(found)
         _check_columns(found, schema)
         return pq.read_table(path, schema=schema)
     except (pa.ArrowException, OSError, ValueError) as e:
         reason = " ".join(str(e).split())[:200]
-        raise UsageError(f"{path} is not a lightprobe batch table ({reason}): rerun the batch with --resume, "
-                         "which writes it again from its parts") from None
+        raise UsageError(f"{path} {what} ({reason}): {remedy}") from None
 
 
 def _order_of(schema) -> int | None:
