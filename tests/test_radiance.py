@@ -156,6 +156,10 @@ def test_the_command_writes_a_set_that_reads_back(tmp_path, capsys, small_probe)
     np.testing.assert_allclose(rset.views, views, atol=1e-9)
     np.testing.assert_array_equal(rset.triangles, faces)
     assert rset.brdf.spec() == "ggx:alpha=0.3,conductor=gold" and rset.size == 32 and len(rset.maps) == 12
+    assert rset.smooth.grid == (6, 16, 16)  # the probe at 16² faces, ∫L dω kept: what synthesis sums exactly
+    env = read_envmap(small_probe)
+    np.testing.assert_allclose((rset.smooth.data * rset.smooth.solid_angles()[..., None]).sum((0, 1, 2)),
+                               (env.data * env.solid_angles()[..., None]).sum((0, 1)), rtol=2e-3)
     manifest = __import__("json").loads((out / "manifest.json").read_text())
     assert manifest["brdf"]["central"] == "mirror" and manifest["method"]["source_face_size"] >= 8
     env = read_envmap(small_probe)
@@ -205,7 +209,7 @@ def test_damaged_sets_are_refused_with_one_line(tmp_path, capsys, small_probe):
     import json
 
     from lightprobe.errors import InputError
-    from lightprobe.io import write_image
+    from lightprobe.io import read_image, write_image
     from lightprobe.radiancefile import read_radiance_set
 
     out = tmp_path / "maps"
@@ -227,6 +231,23 @@ def test_damaged_sets_are_refused_with_one_line(tmp_path, capsys, small_probe):
     assert "index triples" in damaged(lambda d: d.update(triangles=[[0, 1, 99]]))
     assert "version" in damaged(lambda d: d.update(version=7))
     assert "brdf" in damaged(lambda d: d["brdf"].update(spec="ggx:alpha=9"))
+    assert "smooth must be" in damaged(lambda d: d["smooth"].update(file="../smooth.exr"))
+    assert "smooth must be" in damaged(lambda d: d["smooth"].update(size=0))
+    assert "not 48×8" in damaged(lambda d: d["smooth"].update(size=8))
+    (out / "manifest.json").write_text(json.dumps(good))
+    smooth = read_image(out / "smooth.exr")
+    (out / "smooth.exr").rename(out / "kept.exr")
+    with pytest.raises(InputError, match="smooth: the map smooth.exr is missing"):
+        read_radiance_set(out)
+    write_image(out / "smooth.exr", np.where(np.arange(96) == 40, np.nan, smooth[..., 0])[..., None] * [1, 1, 1])
+    with pytest.raises(InputError, match="not finite non-negative"):
+        read_radiance_set(out)
+    write_image(out / "smooth.exr", smooth)
+    assert read_radiance_set(out).smooth.grid == (6, 16, 16)
+    without = json.loads(json.dumps(good))
+    del without["smooth"]  # a set written before the smooth cube: read, synthesised as the paper does
+    (out / "manifest.json").write_text(json.dumps(without))
+    assert read_radiance_set(out).smooth is None
     (out / "manifest.json").write_text(json.dumps(good))
     write_image(out / "view_002.exr", np.ones((4, 4, 3), np.float32))
     with pytest.raises(InputError, match="not 8×8"):

@@ -28,23 +28,27 @@ from .brdf import BRDF, reflected_sums
 from .envmap import EnvMap, resample
 from .errors import UsageError
 from .layouts import CUBE, Sphere
-from .prefilter import box_pyramid, split_peaks
+from .prefilter import box_pyramid, box_reduce_to, split_peaks
 
 WORKING_SIZE = 128  # face size of the working cube (0.7° texels)
 PEAKS = 64  # brightest texels summed as point sources
 TEXELS_PER_LOBE = 8  # a source level's texels are at most lobe_width / 8 across
 BUDGET = 1.5e9  # BRDF evaluations per call (points × source texels) above which a coarser level is taken
 MAX_MAP_SIZE = 2048
+SMOOTH_SIZE = 16  # face size of the smooth environment RS-IBR sums exactly for each view (5.6° texels)
 
 
 @dataclass(frozen=True, eq=False)
 class Lighting:
     """An environment prepared for :func:`reflected_radiance`: the box-filtered pyramid (finest first) of the
-    working cube's bounded part, and the peaks taken out of it (directions, RGB power ∫L dω)."""
+    working cube's bounded part, the peaks taken out of it (directions, RGB power ∫L dω), and ``smooth``: the whole
+    working cube, peaks included, box-filtered to SMOOTH_SIZE faces (radiance, world frame; what
+    :mod:`lightprobe.rsibr` sums exactly for a new view — :func:`smooth_radiance`)."""
 
     levels: tuple
     peak_directions: np.ndarray
     peak_power: np.ndarray
+    smooth: EnvMap | None = None
 
     def level_for(self, brdf: BRDF, points: int) -> int:
         """The index of the level :func:`reflected_radiance` sums for ``points`` points: the coarsest whose
@@ -59,10 +63,34 @@ class Lighting:
 
 def prepare(env: EnvMap, size: int = WORKING_SIZE, peaks: int = PEAKS) -> Lighting:
     """The :class:`Lighting` of ``env`` (radiance, world frame): resampled (energy-conserving) into a ``size`` cube,
-    split into ``peaks`` point sources and a bounded rest, and the rest's box-filtered pyramid."""
+    split into ``peaks`` point sources and a bounded rest, and the rest's box-filtered pyramid; with the whole cube
+    at SMOOTH_SIZE."""
     cube = env if env.layout == CUBE and env.grid[-1] == size else resample(env, CUBE, size)
     rest, directions, power = split_peaks(cube, peaks)
-    return Lighting(tuple(box_pyramid(rest)), directions, power)
+    return Lighting(tuple(box_pyramid(rest)), directions, power, _smooth_cube(cube))
+
+
+def _smooth_cube(cube: EnvMap) -> EnvMap:
+    """The cube at SMOOTH_SIZE faces, ∫L dω kept: box-filtered where its faces are a power-of-two multiple of
+    SMOOTH_SIZE, else resampled."""
+    ratio = cube.grid[-1] // SMOOTH_SIZE
+    if cube.grid[-1] % SMOOTH_SIZE == 0 and ratio & (ratio - 1) == 0:
+        return box_reduce_to(cube, SMOOTH_SIZE)
+    return resample(cube, CUBE, SMOOTH_SIZE)
+
+
+def smooth_radiance(smooth: EnvMap, brdf: BRDF, normals: np.ndarray, views: np.ndarray) -> np.ndarray:
+    """L_r(n; v) (radiance, RGB, (N, 3)) of the environment ``smooth`` (any layout, radiance, world frame) at unit
+    ``normals`` (N, 3) seen from unit ``views`` (N, 3, or one (3,)), every texel summed exactly: no level choice,
+    no peaks — the smooth part of a radiance map that :mod:`lightprobe.rsibr` computes for each new view."""
+    normals = np.ascontiguousarray(np.asarray(normals, dtype=np.float64).reshape(-1, 3))
+    views = np.ascontiguousarray(np.broadcast_to(np.asarray(views, dtype=np.float64), normals.shape))
+    model, params, table = brdf.kernel()
+    out = np.zeros((len(normals), 3))
+    dirs, weights = _sources(smooth)
+    if len(dirs):
+        reflected_sums(model, params, table, normals, views, dirs, weights, out)
+    return out
 
 
 def _sources(level: EnvMap) -> tuple[np.ndarray, np.ndarray]:

@@ -11,6 +11,10 @@ Schema ``{"format": "lightprobe.radiance", "version": 1, ...}``:
 * ``views``: each ``file`` (relative to the folder), ``direction`` (v, unit), ``up`` and ``frame`` (T as three
   columns: right, up, v, as rows of [[right], [up], [v]]);
 * ``triangles``: the view mesh (indices into ``views``, counter-clockwise seen from outside) — absent for one view;
+* ``smooth`` (optional, sets of views only): ``file`` — the environment box-filtered to a cube of
+  ``size`` (16) faces, a 6N × N EXR strip, radiance, world frame, peaks included; with it RS-IBR sums the smooth
+  part of a new view's map exactly and warps only the rest (:mod:`lightprobe.rsibr`); without it (sets written
+  before it existed) synthesis warps the whole maps, as the paper does;
 * ``method``: how the maps were computed (the source level of the working cube, the peaks) and ``timings``.
 
 A set is written to a temporary folder beside the target and renamed into place, so an interrupted run leaves
@@ -29,20 +33,22 @@ from pathlib import Path
 import numpy as np
 
 from .brdf import BRDF, parse_brdf
-from .envmap import EnvMap
+from .envmap import EnvMap, from_image
 from .errors import InputError, UsageError
-from .layouts import Sphere
+from .layouts import CUBE, Sphere
 from .shfile import versioned_document
 
 FORMAT, VERSION = "lightprobe.radiance", 1
 MAX_BYTES = 1 << 20
 MAX_VIEWS = 162
+SMOOTH_FILE = "smooth.exr"
 
 
 @dataclass(frozen=True, eq=False)
 class RadianceSet:
     """Radiance maps of one BRDF at view directions (world frame): ``maps[i]`` is for ``views[i]`` and has layout
-    Sphere(``frames[i]``); ``triangles`` index the view mesh (None for a single view)."""
+    Sphere(``frames[i]``); ``triangles`` index the view mesh (None for a single view); ``smooth`` the
+    environment's smooth cube (:attr:`lightprobe.radiance.Lighting.smooth`) or None."""
 
     brdf: BRDF
     views: np.ndarray  # (N, 3) unit
@@ -50,6 +56,7 @@ class RadianceSet:
     maps: tuple[EnvMap, ...]
     triangles: np.ndarray | None
     method: dict
+    smooth: EnvMap | None = None
 
     @property
     def size(self) -> int:
@@ -63,12 +70,15 @@ def radiance_set(lighting, brdf: BRDF, views: np.ndarray, triangles: np.ndarray 
     :func:`lightprobe.radiance.view_frame` gives them; ``triangles`` the view mesh, or None. ``progress``: a
     progress bar's label."""
     from .progress import track
-    from .radiance import radiance_map, view_frame
+    from .radiance import prepare, radiance_map, view_frame
 
+    if isinstance(lighting, EnvMap):
+        lighting = prepare(lighting)  # once, not once per view
     views = np.asarray(views, dtype=np.float64)
     each = track(list(views), progress) if progress else views
     maps = tuple(radiance_map(lighting, brdf, v, size) for v in each)
-    return RadianceSet(brdf, views, np.array([view_frame(v) for v in views]), maps, triangles, method or {})
+    smooth = lighting.smooth if triangles is not None else None
+    return RadianceSet(brdf, views, np.array([view_frame(v) for v in views]), maps, triangles, method or {}, smooth)
 
 
 def manifest(rset: RadianceSet, files: list[str], timings: dict | None = None, source: str | None = None) -> dict:
@@ -81,6 +91,8 @@ def manifest(rset: RadianceSet, files: list[str], timings: dict | None = None, s
            "method": rset.method, "timings": timings or {}, "source": source}
     if rset.triangles is not None:
         doc["triangles"] = [[int(i) for i in tri] for tri in rset.triangles]
+    if rset.smooth is not None:
+        doc["smooth"] = {"file": SMOOTH_FILE, "layout": "cube", "size": rset.smooth.grid[-1]}
     return doc
 
 
@@ -100,6 +112,8 @@ def write_radiance_set(folder: str | os.PathLike, rset: RadianceSet, timings: di
         files = [f"view_{i:03d}.exr" for i in range(len(rset.maps))]
         for name, rmap in zip(files, rset.maps):
             rmap.save(temp / name)
+        if rset.smooth is not None:
+            rset.smooth.save(temp / SMOOTH_FILE)
         text = json.dumps(manifest(rset, files, timings, source), indent=1, allow_nan=False) + "\n"
         (temp / "manifest.json").write_text(text)
         if folder.exists():
@@ -167,7 +181,27 @@ def read_radiance_set(folder: str | os.PathLike) -> RadianceSet:
             fail("triangles must be index triples into views")
         triangles = tri.astype(np.int64)
     method = doc.get("method") if isinstance(doc.get("method"), dict) else {}
-    return RadianceSet(brdf, np.array(views), np.array(frames), tuple(maps), triangles, method)
+    smooth = _smooth_field(doc.get("smooth"), manifest_path.parent, fail) if "smooth" in doc else None
+    return RadianceSet(brdf, np.array(views), np.array(frames), tuple(maps), triangles, method, smooth)
+
+
+def _smooth_field(field, folder: Path, fail) -> EnvMap:
+    """The manifest's ``smooth`` cube, checked: a file in the folder, a cube strip of the stated face size
+    (1 to 64), finite and non-negative radiance."""
+    from .io import read_image
+
+    if not isinstance(field, dict) or field.get("file") != SMOOTH_FILE or field.get("layout") != "cube" or \
+            not isinstance(field.get("size"), int) or not 1 <= field["size"] <= 64:
+        fail(f"smooth must be {{file: {SMOOTH_FILE}, layout: cube, size: 1 to 64}}")
+    size = field["size"]
+    if not (folder / SMOOTH_FILE).is_file():
+        fail(f"smooth: the map {SMOOTH_FILE} is missing")
+    data = read_image(folder / SMOOTH_FILE)[..., :3]
+    if data.shape[:2] != (size, 6 * size):
+        fail(f"smooth: the map {SMOOTH_FILE} is {data.shape[1]}×{data.shape[0]}, not {6 * size}×{size}")
+    if not np.isfinite(data).all() or (data < 0).any():
+        fail(f"smooth: the map {SMOOTH_FILE} holds pixels that are not finite non-negative radiance")
+    return from_image(np.ascontiguousarray(data, dtype=np.float32), CUBE)
 
 
 def _view_fields(view, i: int, fail) -> tuple[np.ndarray, np.ndarray]:
