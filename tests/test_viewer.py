@@ -144,8 +144,9 @@ def test_gpu_synthesised_radiance_map_equals_radiance_synthesize(page, baked, tm
 
 
 @pytest.mark.parametrize("name, options, tolerance", [
-    ("rsibr", {"views": 12, "map_size": 48}, 0.02),
-    ("rsibr-pixel", {"views": 12, "map_size": 48, "per_pixel_view": True}, 0.02),
+    # the page synthesises as the paper does (the smooth part warped with the rest): so is the Python renderer here
+    ("rsibr", {"views": 12, "map_size": 48, "smooth": False}, 0.02),
+    ("rsibr-pixel", {"views": 12, "map_size": 48, "per_pixel_view": True, "smooth": False}, 0.02),
     ("splitsum", {}, 0.05)])
 def test_glossy_methods_in_webgl_equal_the_python_renderer(page, scene, name, options, tolerance):
     """The bunny in gold alone (no ground): the page's method against lightprobe.render's of the same name."""

@@ -46,6 +46,9 @@ def register(sub) -> None:
                         "OUTPUT (.exr) and OUTPUT's .json")
     p.add_argument("--warp", choices=("normal", "mirror"),
                    help="with --synthesize: the warp (default: the BRDF's central direction, in the manifest)")
+    p.add_argument("--paper-synthesis", action="store_true",
+                   help="with --synthesize: warp the whole maps as Cabral et al. do (default: the set's smooth part "
+                        "summed exactly for the new view, where the folder holds smooth.exr)")
     add_option(p, "--size", type=Number(int, 2, 2048), default=256, help="texels across each map")
     p.add_argument("--output", "-o", type=Path, required=True, help="the folder (or, with --view, the .exr)")
     p.set_defaults(run=run)
@@ -66,7 +69,7 @@ def _synthesize(args) -> None:
     from ..files import check_output, write_text
     from ..radiance import view_frame
     from ..radiancefile import RadianceSet, manifest, read_radiance_set
-    from ..rsibr import blend_weights, synthesize
+    from ..rsibr import blend_weights, sums_smooth_part, synthesize
 
     if args.file is None or not args.file.is_dir():
         refuse("--synthesize reads a folder of radiance maps (lightprobe radiance … -o FOLDER): give it as FILE")
@@ -80,10 +83,12 @@ def _synthesize(args) -> None:
     if rset.triangles is None:
         refuse(f"{args.file} holds one view: synthesis needs a set (--views 12, 42 or 162)")
     t0 = time.perf_counter()
-    out = synthesize(rset, args.synthesize, args.warp)
+    smooth = not args.paper_synthesis and sums_smooth_part(rset)
+    out = synthesize(rset, args.synthesize, args.warp, smooth=smooth)
     seconds = time.perf_counter() - t0
     sources, weights = blend_weights(rset.views, rset.triangles, args.synthesize)
     method = {"how": "reflection-space IBR", "warp": args.warp or rset.brdf.central,
+              "smooth_part": "summed exactly" if smooth else "warped with the rest (the paper's synthesis)",
               "sources": [int(i) for i in sources], "weights": [float(w) for w in weights], "set": str(args.file)}
     one = RadianceSet(rset.brdf, args.synthesize[None, :], view_frame(args.synthesize)[None], (out,), None, method)
     out.save(args.output)

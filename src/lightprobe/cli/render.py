@@ -48,6 +48,8 @@ def register(sub) -> None:
     p.add_argument("--per-pixel-view", action="store_true",
                    help="rsibr: blend each pixel's own view (not one map per frame)")
     p.add_argument("--warp", choices=("normal", "mirror"), help="rsibr: the warp (default: the BRDF's central direction)")
+    p.add_argument("--paper-synthesis", action="store_true",
+                   help="rsibr: warp the whole maps as Cabral et al. do (default: the smooth part summed exactly)")
     add_option(p, "--exposure", type=Number(float, -64, 64), default=0.0, help="exposure in stops for .png output")
     p.set_defaults(run=run)
 
@@ -93,7 +95,7 @@ def method_options(args) -> dict:
         return {"map_size": args.map_size}
     if args.method == "rsibr":
         return {"views": args.views, "map_size": args.map_size, "per_pixel_view": args.per_pixel_view,
-                "warp": args.warp}
+                "warp": args.warp, "smooth": not args.paper_synthesis}
     return {"order": order} if args.method == "hybrid" else {}
 
 

@@ -27,7 +27,7 @@ from ..irradiance import brute_irradiance
 from ..prefilter import hammersley, prefilter_cube
 from ..radiance import check_views, geodesic_views, prepare, radiance_map
 from ..radiancefile import RadianceSet, radiance_set
-from ..rsibr import map_at_normals, reflected_by_view, synthesize
+from ..rsibr import SMOOTH_MIN_LOBE, map_at_normals, reflected_by_view, synthesize
 from .methods import Method, PerEnvironment
 
 DEFAULT_MAP_SIZE = 128
@@ -107,10 +107,10 @@ class RSIBRMethod(GlossyMethod):
     name = "rsibr"
 
     def __init__(self, views: int = 12, map_size: int = DEFAULT_MAP_SIZE, per_pixel_view: bool = False,
-                 warp: str | None = None):
+                 warp: str | None = None, smooth: bool = True):
         super().__init__()
         self.views, self.map_size = check_views(views), _check_size(map_size)
-        self.per_pixel_view, self.warp = bool(per_pixel_view), warp
+        self.per_pixel_view, self.warp, self.smooth = bool(per_pixel_view), warp, bool(smooth)
         if warp not in (None, "normal", "mirror"):
             raise UsageError(f"warp must be normal or mirror, got {warp!r}")
 
@@ -122,12 +122,15 @@ class RSIBRMethod(GlossyMethod):
     def reflected(self, scene, brdf, normals, views):
         rset = self.radiance_set(scene, brdf)
         if self.per_pixel_view:
-            return reflected_by_view(rset, normals, views, self.warp)
-        return map_at_normals(synthesize(rset, camera_view(scene), self.warp), normals)
+            return reflected_by_view(rset, normals, views, self.warp, self.smooth)
+        return map_at_normals(synthesize(rset, camera_view(scene), self.warp, smooth=self.smooth), normals)
 
     def describe(self):
         how = "each pixel's own view blended" if self.per_pixel_view else "one map per frame"
-        return f"rsibr: {self.views} radiance maps {self.map_size}², {how} ({self.warp or 'central'} warp)"
+        part = (f"smooth part summed exactly for lobes ≥ {np.degrees(SMOOTH_MIN_LOBE):.0f}°" if self.smooth
+                else "the paper's synthesis")
+        return (f"rsibr: {self.views} radiance maps {self.map_size}², {how} ({self.warp or 'central'} warp, "
+                f"{part})")
 
 
 def dfg_terms(alpha: float, steps: int = DFG_STEPS, samples: int = DFG_SAMPLES) -> np.ndarray:
