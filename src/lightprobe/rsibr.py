@@ -298,35 +298,20 @@ def _valid(size: int) -> np.ndarray:
     return out
 
 
-@njit(cache=True, inline="always")
-def _table_fetch(tables, k, n0, n1, n2):  # pragma: no cover - compiled
-    """Bilinear read (RGB) of table ``tables[k]`` (:func:`_table_normals`) at unit local normal (n0, n1, n2):
-    (X, Y) = (n0, n1) √(2 / (1 + n2)); normals below the view's horizon are read at the rim above them."""
-    size = tables.shape[1]
-    if n2 < 0.0:
-        r = math.sqrt(n0 * n0 + n1 * n1)
-        n0, n1, n2 = (n0 / r, n1 / r, 0.0) if r > 0 else (1.0, 0.0, 0.0)
-    s = math.sqrt(2.0 / (1.0 + n2)) * size / (2 * RHO)
-    x = min(max(n0 * s + size / 2 - 0.5, 0.0), size - 1.0)
-    y = min(max(n1 * s + size / 2 - 0.5, 0.0), size - 1.0)
-    x0, y0 = min(int(x), size - 2), min(int(y), size - 2)
-    fx, fy = x - x0, y - y0
-    w00, w01, w10, w11 = (1 - fy) * (1 - fx), (1 - fy) * fx, fy * (1 - fx), fy * fx
-    out0 = (w00 * tables[k, y0, x0, 0] + w01 * tables[k, y0, x0 + 1, 0] + w10 * tables[k, y0 + 1, x0, 0]
-            + w11 * tables[k, y0 + 1, x0 + 1, 0])
-    out1 = (w00 * tables[k, y0, x0, 1] + w01 * tables[k, y0, x0 + 1, 1] + w10 * tables[k, y0 + 1, x0, 1]
-            + w11 * tables[k, y0 + 1, x0 + 1, 1])
-    out2 = (w00 * tables[k, y0, x0, 2] + w01 * tables[k, y0, x0 + 1, 2] + w10 * tables[k, y0 + 1, x0, 2]
-            + w11 * tables[k, y0 + 1, x0 + 1, 2])
-    return out0, out1, out2
-
-
 @njit(cache=True, parallel=True)
 def _table_values(table, local, out):  # pragma: no cover - compiled
-    """out[p] = the table (R, C, 3) read at local normal ``local[p]``."""
-    tables = table.reshape((1,) + table.shape)
+    """out[p] = bilinear read (RGB) of ``table`` (:func:`_table_normals`) at the unit local normal ``local[p]`` on
+    the view's side (z ≥ 0): (X, Y) = (x, y) √(2 / (1 + z))."""
+    size = table.shape[0]
     for p in prange(local.shape[0]):
-        out[p, 0], out[p, 1], out[p, 2] = _table_fetch(tables, 0, local[p, 0], local[p, 1], local[p, 2])
+        s = math.sqrt(2.0 / (1.0 + local[p, 2])) * size / (2 * RHO)
+        x = min(max(local[p, 0] * s + size / 2 - 0.5, 0.0), size - 1.0)
+        y = min(max(local[p, 1] * s + size / 2 - 0.5, 0.0), size - 1.0)
+        x0, y0 = min(int(x), size - 2), min(int(y), size - 2)
+        fx, fy = x - x0, y - y0
+        for c in range(3):
+            out[p, c] = ((1 - fy) * ((1 - fx) * table[y0, x0, c] + fx * table[y0, x0 + 1, c])
+                         + fy * ((1 - fx) * table[y0 + 1, x0, c] + fx * table[y0 + 1, x0 + 1, c]))
 
 
 @njit(cache=True, inline="always")
