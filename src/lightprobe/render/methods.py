@@ -17,8 +17,9 @@ sample budget, so a render is reproducible bit for bit from its seed.
 * ``mediancut`` / ``varmin`` — ``count`` point lights carrying the whole map (Debevec 2005; Viriyothai & Debevec
   2009), one shadow ray each: hard shadows, no separate ambient — what users do today.
 
-Shadow rays leave from the hit nudged along its geometric normal and go through Embree's occlusion query in batches
-of the whole frame (:meth:`lightprobe.render.raycast.Tracer.occluded`, every core); no Python loop per pixel.
+Shadow rays leave from the hit nudged along its geometric normal and go through Embree's occlusion query from
+compiled kernels that make, trace and sum them on every core (:mod:`lightprobe.render.sampling`,
+:mod:`lightprobe.render.embree`); no Python loop per pixel.
 """
 
 from __future__ import annotations
@@ -38,7 +39,6 @@ from .raycast import Hits, Tracer
 from .scene import Scene
 
 MAX_SAMPLES = 1024  # shadow rays per light (or ambient-occlusion rays) per shading point
-RAYS_PER_BATCH = 1 << 20  # shadow rays generated at once (~100 MB of temporaries)
 
 
 class PerEnvironment:
@@ -234,61 +234,27 @@ class VarminMethod(PointLightsMethod):
 
 
 # ---- sampling ---------------------------------------------------------------------------------------------------
-def _batches(points: int, per_point: int):
-    step = max(1, RAYS_PER_BATCH // per_point)
-    return (slice(i, min(i + step, points)) for i in range(0, points, step))
-
-
 def visible_cosine_over_cap(tracer: Tracer, origins: np.ndarray, normals: np.ndarray, direction: np.ndarray,
                             radius: float, n: int, rng) -> np.ndarray:
-    """∫ over the cap (``direction``, angular ``radius``) of max(n·ω, 0) V(ω) dω at each point (sr). Times a uniform
-    radiance it is the light's irradiance.
+    """∫ over the cap (unit ``direction``, angular ``radius``) of max(n·ω, 0) V(ω) dω at each point (sr). Times a
+    uniform radiance it is the light's irradiance.
 
-    Exact where nothing can block the cap (:meth:`Tracer.may_block`) and the whole cap is above the shading
-    horizon (n·d ≥ sin r): n·d · π sin² r. Zero where it is wholly below (n·d ≤ −sin r). Elsewhere ``n`` stratified
-    samples uniform in solid angle (:func:`lightprobe.render.sampling.cap_rays`); a shadow ray is traced for each
-    sample above the horizon that the scene's bounds cannot rule out (those they do are counted as seen)."""
-    from .sampling import cap_rays, uniforms
+    Exact where nothing can block the cap (the meshes' planes and bounding spheres, :attr:`Tracer.cone_bounds`) and
+    the whole cap is above the shading horizon (n·d ≥ sin r): n·d · π sin² r. Zero where it is wholly below
+    (n·d ≤ −sin r). Elsewhere ``n`` stratified samples uniform in solid angle, a shadow ray traced for each above the
+    shading horizon (:func:`lightprobe.render.sampling.cap_visible`)."""
+    from .sampling import cap_visible, draw_key
 
+    if not 0 < radius < np.pi / 2:
+        raise ValueError(f"a light's angular radius must be in (0, π/2), got {radius!r}")
     axis = np.asarray(direction, dtype=np.float64)
     normals, origins = np.ascontiguousarray(normals, np.float64), np.ascontiguousarray(origins, np.float64)
-    cos_to, bound = normals @ axis, float(np.sin(radius))
-    out = np.where(cos_to >= bound, cos_to * np.pi * bound * bound, 0.0)
-    sampled = np.nonzero((cos_to > -bound) & (tracer.may_block(origins, axis, radius) | (cos_to < bound)))[0]
     t, s = tangent_frame(axis)
-    solid, cos_r = 2 * np.pi * (1 - np.cos(radius)), float(np.cos(radius))
-    for part in _batches(sampled.size, n):
-        which = sampled[part]
-        m = which.size
-        ray_orig, ray_dir = np.empty((m * n, 3), np.float32), np.empty((m * n, 3), np.float32)
-        cosine, traced, free = np.empty(m * n), np.empty(m, np.int64), np.empty(m)
-        cap_rays(normals[which], origins[which], axis, t, s, cos_r, uniforms(rng, m, n), *tracer.ray_bounds,
-                 ray_orig, ray_dir, cosine, traced, free)
-        offsets, (ray_orig, ray_dir, cosine) = _gathered(n, traced, ray_orig, ray_dir, cosine)
-        seen = free + _sums(offsets, np.where(tracer.occluded(ray_orig, ray_dir), 0.0, cosine))
-        out[which] = seen * (solid / n)
+    out = np.empty(len(normals))
+    if len(out):
+        cap_visible(normals, origins, axis, t, s, float(radius), n, *tracer.cone_bounds, draw_key(rng),
+                    tracer.embree.handle, out)
     return out
-
-
-def _gathered(n: int, traced: np.ndarray, ray_orig, ray_dir, values):
-    """The rays the kernels wrote at the head of each point's n rows (``traced`` per point), packed: the points'
-    offsets into the packed rows (m + 1) and the packed (origins, directions, values)."""
-    from .sampling import compact
-
-    offsets = np.zeros(len(traced) + 1, np.int64)
-    np.cumsum(traced, out=offsets[1:])
-    if offsets[-1] == len(values):  # every sample needs its ray
-        return offsets, (ray_orig, ray_dir, values)
-    packed = np.empty((offsets[-1], 3), np.float32), np.empty((offsets[-1], 3), np.float32), np.empty(offsets[-1])
-    compact(n, offsets, ray_orig, ray_dir, values, *packed)
-    return offsets, packed
-
-
-def _sums(offsets: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """Per point, the sum of its packed values (rows offsets[p] to offsets[p+1])."""
-    running = np.zeros(len(values) + 1)
-    np.cumsum(values, out=running[1:])
-    return running[offsets[1:]] - running[offsets[:-1]]
 
 
 # ---- the ambient's shadows --------------------------------------------------------------------------------------
@@ -313,23 +279,16 @@ def ambient_visibility(tracer: Tracer, origins: np.ndarray, normals: np.ndarray,
     sky; weighting by the ambient's own brightness (``brightness``: a 32-row blurred lat-long of its luminance, read
     bilinearly) removes that bias where the ambient is directional, and it keeps SH's accuracy exactly where nothing
     is blocked (the ratio is 1). A bent normal would need the same rays and still treat every direction alike.
-    Points whose rays all see black get 1. Rays the scene's bounds rule out (:func:`lightprobe.render.sampling
-    .may_hit`) count as seen without being traced."""
-    from .sampling import cosine_rays, uniforms
+    Points whose rays all see black get 1 (:func:`lightprobe.render.sampling.cosine_seen`)."""
+    from .sampling import cosine_seen, draw_key
 
     normals, origins = np.ascontiguousarray(normals, np.float64), np.ascontiguousarray(origins, np.float64)
     tangent, bitangent = (np.ascontiguousarray(v) for v in tangent_frame(normals))
-    out = np.ones(len(origins))
-    for part in _batches(len(origins), n):
-        m = part.stop - part.start
-        ray_orig, ray_dir, y = np.empty((m * n, 3), np.float32), np.empty((m * n, 3), np.float32), np.empty(m * n)
-        traced, free, total = np.empty(m, np.int64), np.empty(m), np.empty(m)
-        cosine_rays(normals[part], tangent[part], bitangent[part], origins[part], uniforms(rng, m, n), brightness,
-                    *tracer.ray_bounds, ray_orig, ray_dir, y, traced, free, total)
-        offsets, (ray_orig, ray_dir, y) = _gathered(n, traced, ray_orig, ray_dir, y)
-        seen = free + _sums(offsets, np.where(tracer.occluded(ray_orig, ray_dir), 0.0, y))
-        out[part] = np.where(total > 0, seen / np.where(total > 0, total, 1.0), 1.0)
-    return out
+    seen, total = np.empty(len(origins)), np.empty(len(origins))
+    if len(origins):
+        cosine_seen(normals, tangent, bitangent, origins, n, brightness, draw_key(rng), tracer.embree.handle, seen,
+                    total)
+    return np.where(total > 0, seen / np.where(total > 0, total, 1.0), 1.0)
 
 
 METHODS = {"sh": SHMethod, "brute": BruteMethod, "hybrid": HybridMethod, "lights": LightsMethod,

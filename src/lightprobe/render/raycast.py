@@ -1,5 +1,5 @@
-"""Ray casting with Embree (embreex, through trimesh): first hits with interpolated shading attributes, and shadow
-rays for the lighting methods that need visibility.
+"""Ray casting with Embree: first hits with interpolated shading attributes (embreex, through trimesh), and shadow
+rays for the lighting methods that need visibility (Embree called from compiled code, :mod:`.embree`).
 
 All meshes of a scene go into one acceleration structure; each hit knows its mesh, triangle and barycentric
 coordinates. Normals are flipped to face the viewer where the geometric normal faces away (two-sided surfaces, as
@@ -8,14 +8,12 @@ Mitsuba's ``twosided`` BSDF), so open meshes such as the Stanford bunny shade th
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 
 import numpy as np
 
 from .scene import Scene
 
-OCCLUSION_CHUNK = 1 << 16  # shadow rays per Embree call and thread (fewer: the calls' overhead shows)
 SHADOW_EPSILON = 1e-4  # offset of shadow-ray origins along the normal, relative to the scene's size
 
 
@@ -57,31 +55,8 @@ class Tracer:
         self.face_normals = mesh.face_normals
         self._intersector = RayMeshIntersector(mesh, scale_to_box=False)
         self.extent = float(np.ptp(self.vertices, axis=0).max())
-        self._bounds = [_bound(m.vertices, self.extent) for m in scene.meshes]
-        self.ray_bounds = _ray_bounds(scene.meshes, self._bounds, self.extent)
-
-    def may_block(self, points: np.ndarray, axis: np.ndarray, half_angle: float) -> np.ndarray:
-        """False where no ray from the point within ``half_angle`` of unit ``axis`` can hit any mesh — a cheap,
-        conservative test per mesh on its bound (below), so shadow rays are cast only where a shadow may fall.
-
-        A flat mesh (a ground plane) cannot be hit by a ray leaving the side of its plane the point is on; any
-        other mesh not by a ray whose cone clears its bounding sphere."""
-        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        out = np.zeros(len(points), dtype=bool)
-        bound_sin = np.sin(min(half_angle, np.pi / 2))
-        for kind, a, b in self._bounds:
-            if kind == "plane":  # a: unit normal, b: offset (n·x = b on the plane)
-                side = points @ a - b
-                toward = float(axis @ a)
-                out |= ~(((side >= 0) & (toward >= bound_sin)) | ((side <= 0) & (toward <= -bound_sin)))
-            else:  # a: centre, b: radius
-                to = a - points
-                dist = np.linalg.norm(to, axis=1)
-                inside = dist <= b
-                cos_to = (to @ axis) / np.maximum(dist, 1e-300)
-                reach = half_angle + np.arcsin(np.clip(b / np.maximum(dist, 1e-300), 0.0, 1.0))
-                out |= inside | (np.arccos(np.clip(cos_to, -1.0, 1.0)) <= reach)
-        return out
+        self.cone_bounds = cone_bounds([_bound(m.vertices, self.extent) for m in scene.meshes])
+        self._embree = None
 
     def first_hits(self, origins: np.ndarray, directions: np.ndarray) -> Hits:
         """Closest hit of each ray (rays that miss are absent)."""
@@ -106,31 +81,20 @@ class Tracer:
                     tri - self.face_offsets[mesh_id], bary, facing, view)
 
     def occluded(self, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
-        """True where a ray (towards a light at infinity) hits any geometry.
+        """True where a ray (towards a light at infinity; directions broadcast against origins) hits any geometry:
+        Embree's occlusion query, sixteen rays a call from compiled code on every core
+        (:meth:`lightprobe.render.embree.EmbreeScene.occluded`), the scene in float32 as Embree stores it."""
+        return self.embree.occluded(origins, directions)
 
-        Embree's occlusion query (any hit ends the ray: cheaper than trimesh's ``intersects_any``, which finds the
-        closest), float32 as Embree stores the scene, in chunks shared by the threads of
-        :func:`lightprobe.limits.threads` — embreex releases the GIL while Embree traces."""
-        from ..limits import threads
+    @property
+    def embree(self):
+        """The scene's triangles as an Embree scene for shadow rays (built on first use: renders without shadows
+        never pay for it)."""
+        if self._embree is None:
+            from .embree import EmbreeScene
 
-        origins, directions = (np.asarray(a, dtype=np.float32).reshape(-1, 3) for a in (origins, directions))
-        origins, directions = (np.ascontiguousarray(a) for a in np.broadcast_arrays(origins, directions))
-        out = np.empty(len(origins), dtype=bool)
-        if not len(out):
-            return out
-        step = max(OCCLUSION_CHUNK, -(-len(out) // threads()))
-        scene = self._intersector._scene  # trimesh's embreex scene: its ``run`` has the OCCLUDED query
-
-        def trace(start):
-            part = slice(start, start + step)
-            out[part] = scene.run(origins[part], directions[part], query="OCCLUDED") == 0  # 0: blocked, −1: free
-
-        starts = range(0, len(out), step)
-        if len(starts) == 1:
-            trace(0)
-        else:
-            list(_pool().map(trace, starts))
-        return out
+            self._embree = EmbreeScene(self.vertices, self.faces)
+        return self._embree
 
     def shadow_origins(self, hits: Hits) -> np.ndarray:
         """Hit points nudged off the surface along the (viewer-facing) geometric normal."""
@@ -152,24 +116,17 @@ class Tracer:
         return out
 
 
-_POOL: dict = {}
-os.register_at_fork(after_in_child=_POOL.clear)  # a forked child has none of its parent's threads
-
-
-def _pool():
-    """The shadow-ray threads, started once per process and thread count (starting them per call cost ~8 ms)."""
-    from concurrent.futures import ThreadPoolExecutor
-
-    from ..limits import threads
-
-    n = threads()
-    if n not in _POOL:
-        _POOL[n] = ThreadPoolExecutor(n, thread_name_prefix="lightprobe-rays")
-    return _POOL[n]
+def cone_bounds(bounds: list) -> tuple[np.ndarray, np.ndarray]:
+    """The meshes' bounds (of :func:`_bound`) as the shadow kernels take them
+    (:func:`lightprobe.render.sampling.cap_visible`): planes (P, 4) — unit normal, offset — and spheres (S, 4) —
+    centre, radius."""
+    planes = [[*a, b] for kind, a, b in bounds if kind == "plane"]
+    spheres = [[*a, b] for kind, a, b in bounds if kind == "sphere"]
+    return np.array(planes, dtype=np.float64).reshape(-1, 4), np.array(spheres, dtype=np.float64).reshape(-1, 4)
 
 
 def _bound(vertices: np.ndarray, extent: float) -> tuple[str, np.ndarray, float]:
-    """A mesh's bound for :meth:`Tracer.may_block`: ("plane", unit normal, offset) when every vertex lies within
+    """A mesh's bound for the test whether a cone of shadow rays may meet it: ("plane", unit normal, offset) when every vertex lies within
     1e-7 of the scene's size of one plane, else ("sphere", centre, radius) around its box's centre."""
     centre = (vertices.min(axis=0) + vertices.max(axis=0)) / 2
     radius = float(np.linalg.norm(vertices - centre, axis=1).max()) * (1 + 1e-9) + 1e-9 * extent
@@ -180,42 +137,6 @@ def _bound(vertices: np.ndarray, extent: float) -> tuple[str, np.ndarray, float]
         if np.abs(vertices @ normal - offset).max() <= 1e-7 * max(extent, 1e-300):
             return "plane", normal, offset
     return "sphere", centre, radius
-
-
-RayBounds = tuple  # (planes (P, 4): unit normal, offset; roots (M, 2, 3); leaf ranges (M, 2); leaves (L, 2, 3))
-LEAF_DEPTH = 5  # each solid mesh's triangles split in 2⁵ = 32 boxes for the per-ray test
-
-
-def _ray_bounds(meshes, bounds, extent: float) -> RayBounds:
-    """The scene's bounds for the shadow-ray kernels' per-ray test (:func:`lightprobe.render.sampling.may_hit`):
-    each flat mesh as its plane, each other mesh as its box and the boxes of 32 groups of its triangles (split at
-    the median centroid along the longest side, recursively) — a ray that enters none of them cannot hit the mesh.
-    Boxes are padded by 10⁻⁵ of the scene's size, far above float32 rounding of the rays Embree traces."""
-    pad = 1e-5 * max(extent, 1e-30)
-    planes, roots, ranges, leaves = [], [], [], []
-    for mesh, (kind, a, b) in zip(meshes, bounds):
-        if kind == "plane":
-            planes.append([*a, b])
-            continue
-        corners = mesh.vertices[mesh.faces]  # (F, 3 corners, 3)
-        groups = _split(corners.mean(axis=1), np.arange(len(corners)), LEAF_DEPTH)
-        ranges.append([len(leaves), len(leaves) + len(groups)])
-        leaves += [[corners[g].reshape(-1, 3).min(axis=0) - pad, corners[g].reshape(-1, 3).max(axis=0) + pad]
-                   for g in groups]
-        roots.append([mesh.vertices.min(axis=0) - pad, mesh.vertices.max(axis=0) + pad])
-    return (np.array(planes, dtype=np.float64).reshape(-1, 4), np.array(roots, dtype=np.float64).reshape(-1, 2, 3),
-            np.array(ranges, dtype=np.int64).reshape(-1, 2), np.array(leaves, dtype=np.float64).reshape(-1, 2, 3))
-
-
-def _split(centres: np.ndarray, which: np.ndarray, depth: int) -> list[np.ndarray]:
-    """Triangle groups: ``which`` halved at the median of its centres along their widest axis, ``depth`` times."""
-    if depth == 0 or len(which) < 2:
-        return [which]
-    c = centres[which]
-    axis = int(np.argmax(np.ptp(c, axis=0)))
-    order = which[np.argsort(c[:, axis], kind="stable")]
-    half = len(order) // 2
-    return _split(centres, order[:half], depth - 1) + _split(centres, order[half:], depth - 1)
 
 
 def _texture_lookup(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
