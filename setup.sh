@@ -67,3 +67,14 @@ if command -v npm >/dev/null && [ "$(cat "$lock" 2>/dev/null)" != "$(sha256sum e
     echo "setup.sh: the engines (npm ci in engines/) are not installed; the demo will say so" >&2
   fi
 fi
+
+# Compile lightprobe's numba kernels here, once, rather than in the first command (about a minute on 2 cores; the
+# demo's own run is then warm). Again only when the sources changed or numba's cache folder is gone.
+stamp=".venv/.lightprobe-kernels"
+sources="$(cat src/lightprobe/*.py src/lightprobe/*/*.py | sha256sum | cut -c1-16)"
+cache="${NUMBA_CACHE_DIR:-${XDG_CACHE_HOME:-$HOME/.cache}/lightprobe/numba}"
+if [ "$(cat "$stamp" 2>/dev/null)" != "$sources" ] || [ ! -d "$cache" ]; then
+  LIGHTPROBE_PROGRESS=0 .venv/bin/python -m lightprobe.warmup || {
+    echo "setup.sh: compiling lightprobe's kernels failed" >&2; exit 2; }
+  echo "$sources" > "$stamp"
+fi

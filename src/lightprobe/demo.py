@@ -867,19 +867,12 @@ MARKER = ".lightprobe-report"  # the file that makes a folder a previous report,
 
 
 def warm_up() -> float:
-    """Run every compiled kernel the report uses once on a tiny map; returns the seconds it took (compilation, or
-    loading the compiled kernels from numba's cache)."""
-    from .layouts import LATLONG
+    """Run every compiled kernel the report uses once on tiny inputs (:func:`lightprobe.warmup.compile_kernels`), so
+    the sections' timings are warm; returns the seconds it took (compilation, or loading the kernels from numba's
+    cache, which ``setup.sh`` fills)."""
+    from .warmup import compile_kernels
 
-    t0 = time.perf_counter()
-    tiny = EnvMap(np.ones(LATLONG.grid_shape(8) + (3,), np.float32), LATLONG)
-    for lay in LAYOUTS:
-        tiny.to(lay, 4)
-    for l_max in (2, 6):
-        project(tiny, l_max)
-        project(tiny.to("cube", 4), l_max)
-    brute_irradiance(tiny, reference_normals(4))
-    return time.perf_counter() - t0
+    return compile_kernels()
 
 
 def check_report_folder(out: Path, force: bool = False) -> None:
@@ -935,7 +928,7 @@ def _write_report(env: EnvMap, out: Path, probe_name: str | None) -> None:
     t0 = time.perf_counter()
     compile_seconds = warm_up()
     body = "".join(section(rep) for section in track(SECTIONS, "writing the report", total=len(SECTIONS)))
-    rows = [["compiling the numba kernels (first run on a machine; later runs load them from the cache)",
+    rows = [["compiling the numba kernels, or loading them from numba's cache (setup.sh compiles them)",
              f"{1000 * compile_seconds:.1f} ms"]]
     rows += [[k, f"{1000 * v:.1f} ms"] for k, v in rep.timings.items()]
     page = (f"<!doctype html><html><head><meta charset='utf-8'><title>lightprobe report</title>"

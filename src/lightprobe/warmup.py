@@ -1,0 +1,126 @@
+"""Compile lightprobe's numba kernels once, on tiny inputs, so that later commands load them from numba's cache.
+
+``setup.sh`` runs ``python -m lightprobe.warmup`` after installing: without it the first ``lightprobe demo`` on a
+machine spends about a minute of its time compiling (2 cores), and every first command pays for its own kernels.
+numba caches a kernel per source file and argument types, in ``NUMBA_CACHE_DIR`` (the user's cache folder, see
+:mod:`lightprobe`); the calls here pass the types the commands pass — float32 maps, float64 directions and
+normals, the scenes' arrays — so a kernel met later with other types still compiles then, as it would have.
+
+What runs: every layout conversion between any two layouts, direct, and through cached weights from a lat-long; SH projection of the orders
+the commands use; brute-force and hybrid irradiance; the area-light decomposition and its baselines; a tiny
+scene rendered by every method (shadow rays, ambient occlusion, glossy gold and plastic); radiance maps, RS-IBR
+synthesis and the split sum's prefiltered cube.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+
+
+def _probe():
+    """A 32×16 lat-long sky with a small bright sun: enough for lights to be found and every path to run."""
+    from .envmap import EnvMap
+    from .layouts import LATLONG
+
+    data = np.full((16, 32, 3), 0.5, np.float32)
+    data[4, 10] = 400.0
+    return EnvMap(data, LATLONG)
+
+
+def _maps(env) -> None:
+    from .envmap import Resampler
+    from .irradiance import brute_irradiance, irradiance_map
+    from .layouts import LAYOUTS, LATLONG
+    from .sh import project
+
+    for source in LAYOUTS:  # probes come in every layout, and go to every other
+        mapped = env.to(source, 8)
+        project(mapped, 2, compiled=True)
+        for target in LAYOUTS:
+            mapped.to(target, 8)
+    Resampler(LATLONG, env.grid, "cube", 8)(env)
+    for l_max in (2, 6, 8, 12, 16):
+        project(env, l_max)
+        project(env, l_max, compiled=True)
+    brute_irradiance(env, np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0]]))
+    irradiance_map(env, "latlong", 8)
+    irradiance_map(env, "latlong", 8, method="brute")
+
+
+def _lights(env) -> None:
+    from .baselines import median_cut, variance_minimisation
+    from .hybrid import hybrid_irradiance
+    from .lights import decompose
+
+    dec = decompose(env)
+    hybrid_irradiance(env, dec).evaluate(np.array([[0.0, 1.0, 0.0], [0.0, -1.0, 0.0]]))
+    median_cut(env, 4)
+    variance_minimisation(env, 4)
+
+
+def _renders(env) -> None:
+    from .brdf import parse_brdf
+    from .render.methods import method
+    from .render.raycast import Tracer
+    from .render.renderer import render
+    from .render.scene import Camera, Material, Scene, ground_plane, sphere
+
+    gold = Material(brdf=parse_brdf("ggx:alpha=0.3,conductor=gold"))
+    plastic = Material(brdf=parse_brdf("plastic:alpha=0.2,albedo=0.6/0.08/0.05"))
+    camera = Camera(eye=(0.0, 1.0, 3.0), target=(0.0, 0.4, 0.0), fov=40, width=12, height=12)
+    diffuse = Scene((sphere(0.4, (0, 0.4, 0), subdivisions=2), ground_plane(4.0, 0.0)), camera, env, False)
+    tracer = Tracer(diffuse)
+    for name, options in (("sh", {}), ("brute", {}), ("hybrid", {}), ("lights", {"light_samples": 4}),
+                          ("lights", {"light_samples": 4, "ao": True, "ao_samples": 4}), ("mediancut", {"count": 4})):
+        render(diffuse, method(name, **options), 1, tracer)
+    for material in (gold, plastic):
+        glossy = Scene((sphere(0.4, (0, 0.4, 0), material, subdivisions=2), ground_plane(4.0, 0.0)), camera, env,
+                       False)
+        tracer = Tracer(glossy)
+        for name, options in (("brute", {}), ("direct", {"map_size": 8}), ("rsibr", {"views": 12, "map_size": 8}),
+                              ("rsibr", {"views": 12, "map_size": 8, "per_pixel_view": True}),
+                              ("splitsum", {"cube_size": 8})):
+            if name != "splitsum" or material is gold:  # the split sum is GGX's alone
+                render(glossy, method(name, **options), 1, tracer)
+
+
+def _radiance(env) -> None:
+    from .brdf import parse_brdf
+    from .radiance import geodesic_views, prepare, radiance_map
+    from .radiancefile import radiance_set
+    from .rsibr import synthesize
+
+    lighting = prepare(env)
+    for spec in ("ggx:alpha=0.3,conductor=gold", "lambert"):
+        brdf = parse_brdf(spec)
+        rset = radiance_set(lighting, brdf, *geodesic_views(12), 8)
+        view = np.array([0.35, 0.45, 0.82]) / np.linalg.norm([0.35, 0.45, 0.82])
+        synthesize(rset, view)
+        synthesize(rset, view, smooth=False)
+        radiance_map(lighting, brdf, view, 8)
+
+
+def compile_kernels(report=None) -> float:
+    """Run every compiled kernel the commands use once (compiling it, or loading it from numba's cache); returns
+    the seconds it took. ``report(step)``, if given, is told each step's name before it runs."""
+    t0 = time.perf_counter()
+    env = _probe()
+    for name, step in (("maps", _maps), ("lights", _lights), ("renders", _renders), ("radiance", _radiance)):
+        if report:
+            report(name)
+        step(env)
+    return time.perf_counter() - t0
+
+
+def main() -> int:
+    seconds = compile_kernels(lambda step: print(f"lightprobe: compiling kernels ({step})", file=sys.stderr,
+                                                 flush=True))
+    print(f"lightprobe: kernels compiled (or loaded from numba's cache) in {seconds:.1f} s", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
