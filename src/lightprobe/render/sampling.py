@@ -5,13 +5,13 @@ rays, and no Python work per light beyond one call.
 Random numbers: counter-based (SplitMix64's output function over key + counter · γ — the generator's value at that
 counter), keyed by one 64-bit draw from the method's ``numpy.random.Generator`` per call, so a sample depends only on
 (key, point, sample): a render is reproducible bit for bit from its seed, whatever the thread count, and no array
-of uniforms is made (drawing them took as long as Embree took to trace the rays).
+of uniforms is made (drawing them took 14–20 ms of a 0.2 s frame: 256² bunny, 8 lights × 16 rays).
 
 Stratification: one Latin hypercube of n samples per call (u in n strata in order, v in n strata in a shuffled
 order, both jittered), randomly shifted per point on the unit torus (a Cranley–Patterson rotation: u by a uniform
 modulo 1, the azimuth 2πv by a uniform angle). Each point's samples are then stratified and each is uniform, so the
-estimate is unbiased; and the pattern's cosines and sines are computed once per call, not per sample (they were
-half of the kernels' own time).
+estimate is unbiased; and the pattern's cosines and sines are computed once per call, not per sample (the same
+frame's sample making, tracing aside, went from 64 to 24 ms).
 """
 
 from __future__ import annotations
