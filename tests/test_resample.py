@@ -298,3 +298,38 @@ def test_a_resampler_refuses_other_maps_and_does_not_cache_box_reductions(source
     tiny = Resampler(src.layout, src.grid, CUBE, 2)  # 2048 source pixels for 24: box-reduced first, not cached
     assert tiny.nbytes == 0
     np.testing.assert_array_equal(tiny(src).data, resample(src, CUBE, 2).data)
+
+
+# ---- lat-long → cube through the cube's symmetries --------------------------------------------------------------
+@pytest.mark.parametrize("rows, faces, k, reduce_poles", [(32, 20, 3, False), (32, 21, 3, True), (64, 24, 3, True),
+                                                          (16, 40, 2, True), (128, 17, 6, True)])
+def test_the_symmetric_cube_pass_equals_the_general_kernel(rows, faces, k, reduce_poles):
+    """Issue 9: one footprint read for up to 8 target pixels (quarter turns, mirror) gives what the general kernel
+    computes pixel by pixel, to float32 rounding — odd and even faces, polar reductions, suns on the seam, near both
+    poles and on the equator; the streamed strips too."""
+    from lightprobe.envmap.resample import _plan, resample_strips
+
+    rng = np.random.default_rng(rows + faces)
+    data = rng.gamma(0.5, 1.0, size=(rows, 2 * rows, 3)).astype(np.float32)
+    data[3, 10], data[rows - 1, 5], data[rows // 2, 0], data[0, rows] = 500, 300, 800, 200
+    src = EnvMap(data, LATLONG)
+    grid = CUBE.grid_shape(faces)
+    assert _plan(src, CUBE, faces, None, k, reduce_poles).cube_rows is not None  # the symmetric pass is taken
+    want = _fused_resample(src, CUBE, grid, k, None, reduce_poles, symmetric=False).data
+    got = _fused_resample(src, CUBE, grid, k, None, reduce_poles).data
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-6 * float(want.max()))
+    if reduce_poles:
+        _, strips = resample_strips(src, CUBE, faces, samples=k, strip_pixels=6 * faces * 3)
+        image = np.concatenate([block for _, block in strips])
+        np.testing.assert_allclose(image.reshape(faces, 6, faces, 3).transpose(1, 0, 2, 3), want, rtol=0,
+                                   atol=1e-6 * float(want.max()))
+
+
+def test_the_symmetric_cube_pass_is_not_taken_where_it_does_not_hold():
+    from lightprobe.envmap.resample import _plan
+
+    src = EnvMap(np.ones((16, 32, 3), np.float32), LATLONG)
+    assert _plan(src, CUBE, 8, TURN, 3).cube_rows is None  # a turned environment
+    odd = EnvMap(np.ones((15, 30, 3), np.float32), LATLONG)  # W/4 not whole
+    assert _plan(odd, CUBE, 8, None, 3).cube_rows is None
+    assert _plan(src, LATLONG, 8, None, 3).cube_rows is None

@@ -532,7 +532,6 @@ def resample_into(src_kind, src, valid, levels, reduced, row_offsets, caps, src_
     to compile this kernel the first time, against 9 s serial, for the same speed per core.)"""
     h, w = tgt_h, out.shape[1]
     last = first + out.shape[0]
-    tiled = src_kind == LATLONG or src_kind == CUBE  # sources whose taps are all valid (no renormalisation)
     for line in range(first, last):
         face, row = line // h, line % h
         wx, wy, acc, value = np.empty(4), np.empty(4), np.empty(3), np.empty(3)
@@ -544,20 +543,41 @@ def resample_into(src_kind, src, valid, levels, reduced, row_offsets, caps, src_
                 for c in range(3):
                     out[line - first, col, c] = 0.0
                 continue
-            n, wsum = _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, k, rotation, src_kind, src_axes,
-                                  src_h, src_w, pfs, pxs, pys, pws)
-            acc[0], acc[1], acc[2] = 0.0, 0.0, 0.0
-            if not (tiled and _same_face(pfs, n)
-                    and _footprint(src, pfs[0], src_kind != LATLONG, levels, reduced, row_offsets, caps, pxs, pys,
-                                   pws, n, scratch, tile, acc)):
-                for s in range(n):  # looked up one by one (compiled apart: it is the rarer path for these sources)
-                    value[0], value[1], value[2] = 0.0, 0.0, 0.0
-                    _lookup(src_kind, src, valid, levels, reduced, row_offsets, pfs[s], pxs[s], pys[s], wx, wy,
-                            value)
-                    for c in range(3):
-                        acc[c] += pws[s] * value[c]
+            _pixel(src_kind, src, valid, levels, reduced, row_offsets, caps, src_axes, src_h, src_w, tgt_kind,
+                   tgt_axes, face, row, col, h, w, k, rotation, pfs, pxs, pys, pws, wx, wy, value, tile, scratch, acc)
             for c in range(3):
-                out[line - first, col, c] = acc[c] / wsum
+                out[line - first, col, c] = acc[c]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _pixel(src_kind, src, valid, levels, reduced, row_offsets, caps, src_axes, src_h, src_w, tgt_kind, tgt_axes,
+           face, row, col, h, w, k, rotation, pfs, pxs, pys, pws, wx, wy, value, tile, scratch,
+           acc):  # pragma: no cover - compiled
+    """``acc`` = the value of target pixel (face, row, col) of an h × w face (:func:`resample_into`'s arguments;
+    the rest is scratch)."""
+    n, wsum = _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, k, rotation, src_kind, src_axes, src_h, src_w,
+                          pfs, pxs, pys, pws)
+    acc[0], acc[1], acc[2] = 0.0, 0.0, 0.0
+    tiled = src_kind == LATLONG or src_kind == CUBE  # sources whose taps are all valid (no renormalisation)
+    if not (tiled and _same_face(pfs, n)
+            and _footprint(src, pfs[0], src_kind != LATLONG, levels, reduced, row_offsets, caps, pxs, pys,
+                           pws, n, scratch, tile, acc)):
+        for s in range(n):  # looked up one by one (compiled apart: it is the rarer path for these sources)
+            value[0], value[1], value[2] = 0.0, 0.0, 0.0
+            _lookup(src_kind, src, valid, levels, reduced, row_offsets, pfs[s], pxs[s], pys[s], wx, wy, value)
+            for c in range(3):
+                acc[c] += pws[s] * value[c]
+    for c in range(3):
+        acc[c] /= wsum
+
+
+@njit(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})
+def pixel_into(src_kind, src, valid, levels, reduced, row_offsets, caps, src_axes, src_h, src_w, tgt_kind, tgt_axes,
+               face, row, col, h, w, k, rotation, pfs, pxs, pys, pws, wx, wy, value, tile, scratch,
+               acc):  # pragma: no cover - compiled
+    """:func:`_pixel` compiled apart, for kernels that need the general path for a rare pixel."""
+    _pixel(src_kind, src, valid, levels, reduced, row_offsets, caps, src_axes, src_h, src_w, tgt_kind, tgt_axes,
+           face, row, col, h, w, k, rotation, pfs, pxs, pys, pws, wx, wy, value, tile, scratch, acc)
 
 
 # ---- cached footprint weights ---------------------------------------------------------------------------------------

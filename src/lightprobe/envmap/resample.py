@@ -13,7 +13,7 @@ from ..layouts import CUBE, Cross, Layout
 from .. import limits
 from ..limits import check_memory, check_pixels
 from ..progress import track
-from . import fused, polar
+from . import cube_symmetry, fused, polar
 from .map import EnvMap, owned
 
 _CHUNK_SAMPLES = 1 << 18  # direction lookups per chunk of a resampling pass (bounds memory to ~100 MB)
@@ -89,11 +89,7 @@ def resample(
     if plan is None:
         source, grid, k, _ = _prepared(source, target, size, samples, rotation)
         return reference_resample(source, target, grid, k, rotation)  # a layout the kernel does not know
-    out = np.empty(plan.lines_shape, dtype=np.float32)
-    step = max(64, -(-len(out) // 16))
-    for first in track(range(0, len(out), step), f"resampling to {target.name}", total=-(-len(out) // step)):
-        plan.fill(out[first:first + step], first)
-    return plan.finish(out)
+    return plan.finish(plan.fill_all(f"resampling to {target.name}"))
 
 
 def resample_strips(source: EnvMap, target: Layout, size: int | None = None, *, rotation: np.ndarray | None = None,
@@ -115,8 +111,11 @@ def resample_strips(source: EnvMap, target: Layout, size: int | None = None, *, 
         for top in track(range(0, h, rows), f"resampling to {target.name}", total=-(-h // rows)):
             n = min(rows, h - top)
             block = np.empty((faces, n, w, 3), dtype=np.float32)
-            for face in range(faces):
-                plan.fill(block[face], face * h + top)
+            if plan.cube_rows is not None:
+                plan.fill_rows(block, top, 0, n)
+            else:
+                for face in range(faces):
+                    plan.fill(block[face], face * h + top)
             yield top, block.transpose(1, 0, 2, 3).reshape(n, faces * w, 3)  # a cube file's rows: faces side by side
 
     return (h, faces * w), strips()
@@ -175,6 +174,7 @@ class _Plan:
     grid: tuple[int, ...]  # the filled layout's grid
     height: int  # rows per face
     args: tuple  # the kernel's arguments before ``out, first``
+    cube_rows: tuple | None = None  # lat-long → cube by symmetry: cube_symmetry.cube_rows_into's before ``out, …``
 
     @property
     def lines_shape(self) -> tuple[int, int, int]:
@@ -193,6 +193,47 @@ class _Plan:
         with ThreadPoolExecutor(threads) as pool:
             list(pool.map(lambda s: fused.resample_into(*self.args, out[s:s + band], first + s), starts))
 
+    def fill_rows(self, faces: np.ndarray, top: int, first: int, last: int, poles: bool = True) -> None:
+        """Compute rows ``first`` … ``last − 1`` of ``faces`` (6, R, n, 3) — image rows ``top + first`` … of the
+        cube's side faces, and of +Y and −Y if ``poles`` — through the cube's symmetries
+        (:mod:`lightprobe.envmap.cube_symmetry`)."""
+        self._bands(lambda a, b: cube_symmetry.cube_rows_into(*self.cube_rows, poles, faces, top, a, b), first, last)
+
+    def fill_polar_faces(self, faces: np.ndarray) -> None:
+        """Compute the +Y and −Y faces of ``faces`` (6, n, n, 3) whole, through their eight symmetries."""
+        self._bands(lambda a, b: cube_symmetry.polar_faces_into(*self.cube_rows, faces, a, b), 0,
+                    (self.height + 1) // 2, per_thread=16)  # a triangle: its first rows are the longest
+
+    @staticmethod
+    def _bands(kernel, first: int, last: int, per_thread: int = 4) -> None:
+        """kernel(a, b) over bands of [first, last) on :func:`lightprobe.limits.threads` threads (it releases the
+        GIL), several bands a thread: the slow bands (near the poles) even out."""
+        rows = last - first
+        threads = min(limits.threads(), max(1, rows // 2))
+        if threads == 1:
+            kernel(first, last)
+            return
+        band = max(1, -(-rows // (per_thread * threads)))
+        with ThreadPoolExecutor(threads) as pool:
+            list(pool.map(lambda a: kernel(a, min(a + band, last)), range(first, last, band)))
+
+    def fill_all(self, what: str) -> np.ndarray:
+        """The whole map's lines (face-major rows), in steps a progress bar follows."""
+        out = np.empty(self.lines_shape, dtype=np.float32)
+        if self.cube_rows is not None:
+            # The whole map is here: +Y and −Y through all eight of their symmetries (a strip has only its rows)
+            faces, h = out.reshape(6, self.height, -1, 3), self.height
+            for part in track(range(2), what, total=2):  # each part is one pool of threads: no waits between steps
+                if part == 0:
+                    self.fill_polar_faces(faces)
+                else:
+                    self.fill_rows(faces, 0, 0, h, poles=False)
+            return out
+        step = max(64, -(-len(out) // 16))
+        for first in track(range(0, len(out), step), what, total=-(-len(out) // step)):
+            self.fill(out[first:first + step], first)
+        return out
+
     def finish(self, lines: np.ndarray) -> EnvMap:
         out = lines.reshape(self.grid + (3,))
         if isinstance(self.target, Cross):
@@ -201,8 +242,9 @@ class _Plan:
 
 
 def _plan(source: EnvMap, target: Layout, size: int | None, rotation, samples: int | None,
-          reduce_poles: bool = True) -> _Plan | None:
-    """The compiled pass for this resampling, or None when the kernel does not know one of the layouts."""
+          reduce_poles: bool = True, symmetric: bool = True) -> _Plan | None:
+    """The compiled pass for this resampling, or None when the kernel does not know one of the layouts; an
+    unturned lat-long into a cube goes through the cube's symmetries unless ``symmetric`` is False."""
     if fused.CODES.get(source.layout.name) is None and not isinstance(source.layout, Cross):
         return None
     if fused.CODES.get(_face_layout(target).name) is None:
@@ -227,17 +269,19 @@ def _plan(source: EnvMap, target: Layout, size: int | None, rotation, samples: i
                  else filled.valid_mask(grid).reshape(faces).astype(np.uint8))
     args = (src_kind, img, valid, *reduction, _axes(source.layout), source.grid[-2], source.grid[-1],
             fused.CODES[filled.name], _axes(filled), faces[1], tgt_valid, all_valid, k, turn)
-    return _Plan(target, filled, grid, faces[1], args)
+    by_symmetry = (symmetric and src_kind == fused.LATLONG and filled.name == "cube"
+                   and cube_symmetry.applies(source.grid[-1], rotation))
+    cube_rows = (img, *reduction, faces[1], k, cube_symmetry._kinds()) if by_symmetry else None
+    return _Plan(target, filled, grid, faces[1], args, cube_rows)
 
 
 def _fused_resample(source: EnvMap, target: Layout, grid: tuple[int, ...], k: int,
-                    rotation: np.ndarray | None, reduce_poles: bool = False) -> EnvMap:
+                    rotation: np.ndarray | None, reduce_poles: bool = False, symmetric: bool = True) -> EnvMap:
     """The compiled pass at a given supersampling rate k (for tests comparing it with :func:`reference_resample`,
-    which reads every row as it is: by default so does this)."""
-    plan = _plan(source, target, target.size_of(grid), rotation, k, reduce_poles)
-    out = np.empty(plan.lines_shape, dtype=np.float32)
-    plan.fill(out, 0)
-    return plan.finish(out)
+    which reads every row as it is: by default so does this; ``symmetric`` False takes the general kernel where the
+    cube's symmetries would serve)."""
+    plan = _plan(source, target, target.size_of(grid), rotation, k, reduce_poles, symmetric)
+    return plan.finish(plan.fill_all("resampling"))
 
 
 class Resampler:
