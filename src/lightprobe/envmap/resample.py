@@ -83,7 +83,9 @@ def resample(
     energy-preserving), and a latlong source's polar rows are read from their reductions in azimuth where the
     lookups would skip columns (:mod:`lightprobe.envmap.polar`; the first row at each pole stays over-weighted,
     1.25× its solid angle). ``rotation`` R turns the environment: the target at direction d shows the source at Rᵀd.
-    The work is one compiled pass (:mod:`lightprobe.envmap.fused`) whose memory is the output.
+    The work is one compiled pass (:mod:`lightprobe.envmap.fused`) whose memory is the output; an unturned lat-long
+    into a cube reads each footprint for its images under the cube's symmetries
+    (:mod:`lightprobe.envmap.cube_symmetry`).
     """
     plan = _plan(source, target, size, rotation, samples)
     if plan is None:
