@@ -67,7 +67,9 @@ def test_paper_error_claim_on_every_debevec_probe(probe):
     expected = independent_errors(box_reduce(env), normals)  # a quarter of the pixels keeps it quick
     ours = error_report(box_reduce(env), 2, normals=normals)
     for got, want in zip((ours.paper_mean, ours.paper_max, ours.relative_mean, ours.relative_max), expected):
-        assert got == pytest.approx(want, rel=1e-6)
+        # 1e-5: two float32-fed sums of the same error; at 1e-6 the beach probe's paper mean (1.3e-2) fell 1.5e-6 off
+        # on this machine at 7158b7a as at its successor (the last bits depend on the machine's BLAS and kernels)
+        assert got == pytest.approx(want, rel=1e-5)
     assert ours.relative_mean > 2 * ours.paper_mean  # the dark side: per-normal error well above the paper's
 
 
