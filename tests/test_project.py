@@ -66,6 +66,44 @@ def test_compiled_kernels_are_cached_in_the_user_cache_folder(tmp_path):
     assert any("latlong_row_sums_sh9" in p.name for p in cached), cached
 
 
+def test_the_numba_cache_folder_follows_every_source_file(tmp_path, monkeypatch):
+    """A changed helper module gets a fresh cache folder even though the kernel inlining it is unchanged (numba
+    would check only the kernel's own file); an unchanged tree keeps its folder."""
+    import os
+
+    import lightprobe
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    tree = tmp_path / "pkg"
+    (tree / "sub").mkdir(parents=True)
+    (tree / "kernel.py").write_text("x = 1\n")
+    (tree / "sub" / "helper.py").write_text("y = 2\n")
+    first = lightprobe._numba_cache_dir(str(tree))
+    assert first == lightprobe._numba_cache_dir(str(tree))
+    assert os.path.dirname(first) == str(tmp_path / "cache" / "lightprobe" / "numba")
+    (tree / "sub" / "helper.py").write_text("y = 3\n")
+    os.utime(tree / "sub" / "helper.py", ns=(1, 1))
+    assert lightprobe._numba_cache_dir(str(tree)) != first
+
+
+def test_stale_cache_folders_are_pruned_and_recent_ones_kept(tmp_path, monkeypatch):
+    import os
+
+    from lightprobe.warmup import prune_stale_caches
+
+    base = tmp_path / "lightprobe" / "numba"
+    current, old, recent, own = base / "0000cafe", base / "0badf00d", base / "12345678", base / "mine"
+    for folder in (current, old, recent, own):
+        folder.mkdir(parents=True)
+    os.utime(old, (1, 1))
+    os.utime(own, (1, 1))
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(current))
+    assert prune_stale_caches() == [str(old)]
+    assert current.is_dir() and recent.is_dir() and own.is_dir() and not old.exists()
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "elsewhere"))
+    assert prune_stale_caches() == []
+
+
 def test_import_and_help_stay_light():
     """`import lightprobe` loads neither numba nor OpenImageIO (PEP 562: names load on first use), and neither does
     `lightprobe --help`; the README's names resolve; a kernel compiles on first call with numba's prange."""

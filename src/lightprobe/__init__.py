@@ -8,9 +8,26 @@ on top. The names of ``__all__`` load on first use.
 import os as _os
 
 # numba keeps compiled kernels beside the source by default, which fails where the package is installed read-only;
-# keep them in the user's cache folder instead (before numba is first imported, which reads this once).
-_os.environ.setdefault("NUMBA_CACHE_DIR", _os.path.join(
-    _os.environ.get("XDG_CACHE_HOME") or _os.path.join(_os.path.expanduser("~"), ".cache"), "lightprobe", "numba"))
+# keep them in the user's cache folder instead (before numba is first imported, which reads this once). The folder
+# is keyed by the package's sources: numba checks only a kernel's own file for changes, so a kernel that inlines a
+# helper from another module would otherwise keep a stale copy of it after that module changed.
+
+
+def _numba_cache_dir(root: str = _os.path.dirname(__file__)) -> str:
+    import zlib
+
+    stamp = []
+    for folder, dirs, files in sorted(_os.walk(root)):
+        dirs[:] = sorted(d for d in dirs if d != "__pycache__")
+        for name in sorted(f for f in files if f.endswith(".py")):
+            info = _os.stat(_os.path.join(folder, name))
+            stamp.append(f"{_os.path.relpath(folder, root)}/{name}:{info.st_size}:{info.st_mtime_ns}")
+    base = _os.environ.get("XDG_CACHE_HOME") or _os.path.join(_os.path.expanduser("~"), ".cache")
+    return _os.path.join(base, "lightprobe", "numba", f"{zlib.crc32(chr(10).join(stamp).encode()):08x}")
+
+
+if "NUMBA_CACHE_DIR" not in _os.environ:
+    _os.environ["NUMBA_CACHE_DIR"] = _numba_cache_dir()
 
 # One thread setting for everything below: LIGHTPROBE_THREADS sizes numba's pool and BLAS's before either loads
 # (a malformed value is reported when a kernel first runs, by lightprobe.limits.threads).

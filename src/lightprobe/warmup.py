@@ -115,7 +115,28 @@ def compile_kernels(report=None) -> float:
     return time.perf_counter() - t0
 
 
+def prune_stale_caches(days: float = 14.0) -> list[str]:
+    """Remove the numba cache folders of other source states (:mod:`lightprobe` keys the folder by its sources)
+    untouched for ``days``: each edit or reinstall leaves one behind. Recent ones stay — another checkout on the
+    machine may be using its own right now. Returns the folders removed."""
+    import os
+    import shutil
+
+    current = os.environ.get("NUMBA_CACHE_DIR", "")
+    parent = os.path.dirname(current)
+    if os.path.basename(parent) != "numba" or not os.path.isdir(parent):
+        return []  # a NUMBA_CACHE_DIR of the user's own: not ours to tidy
+    removed = []
+    for entry in os.scandir(parent):
+        stale = time.time() - entry.stat().st_mtime > days * 86400
+        if entry.is_dir() and entry.path != current and len(entry.name) == 8 and stale:
+            shutil.rmtree(entry.path, ignore_errors=True)
+            removed.append(entry.path)
+    return removed
+
+
 def main() -> int:
+    prune_stale_caches()
     seconds = compile_kernels(lambda step: print(f"lightprobe: compiling kernels ({step})", file=sys.stderr,
                                                  flush=True))
     print(f"lightprobe: kernels compiled (or loaded from numba's cache) in {seconds:.1f} s", file=sys.stderr)
