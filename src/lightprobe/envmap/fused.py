@@ -20,6 +20,7 @@ import math
 import numpy as np
 
 from ..jit import njit
+from .pole_rows import FACTORS as POLE_FACTORS, MIN_HEIGHT as POLE_MIN_HEIGHT, REACH as POLE_REACH
 
 LATLONG, CUBE, ANGULAR, SPHERE = 0, 1, 2, 3
 CODES = {"latlong": LATLONG, "cube": CUBE, "angular": ANGULAR, "sphere": SPHERE}
@@ -193,6 +194,27 @@ def _reflected_row(row, h):  # pragma: no cover - compiled
     return row, False
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _pole_factor(row, h):  # pragma: no cover - compiled
+    """The rational weight factor a_j of a latlong tap row (past a pole or not): j rows from its pole."""
+    src, _ = _reflected_row(row, h)
+    j = min(src, h - 1 - src)
+    return POLE_FACTORS[j] if j < POLE_REACH else 1.0
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _pole_rows4(r0, h, b0, b1, b2, b3):  # pragma: no cover - compiled
+    """The y weights of latlong tap rows r0 … r0 + 3, made rational where a row is near a pole (a_j B_j / Σ a_m
+    B_m, :mod:`lightprobe.envmap.pole_rows`: each row keeps its ∫ dω; the plain B-spline over-counts the first
+    row by 25 %), unchanged elsewhere and in maps under POLE_MIN_HEIGHT rows."""
+    if h < POLE_MIN_HEIGHT or (r0 >= POLE_REACH and r0 + 3 < h - POLE_REACH):
+        return b0, b1, b2, b3
+    c0, c1 = b0 * _pole_factor(r0, h), b1 * _pole_factor(r0 + 1, h)
+    c2, c3 = b2 * _pole_factor(r0 + 2, h), b3 * _pole_factor(r0 + 3, h)
+    s = c0 + c1 + c2 + c3
+    return c0 / s, c1 / s, c2 / s, c3 / s
+
+
 @njit(cache=True, error_model="numpy")
 def _lookup_latlong(src, levels, reduced, offsets, x, y, wx, wy, acc):  # pragma: no cover - compiled
     """B-spline lookup of an unpadded latlong image (1, H, W, 3) at pixel coordinates (x, y), added to ``acc``.
@@ -204,6 +226,7 @@ def _lookup_latlong(src, levels, reduced, offsets, x, y, wx, wy, acc):  # pragma
     fy = math.floor(y)
     _bspline_weights(y - fy, wy)
     r0 = int(fy) - 1
+    wy[0], wy[1], wy[2], wy[3] = _pole_rows4(r0, h, wy[0], wy[1], wy[2], wy[3])
     for dy in range(4):
         row, level, width, shift = _row_frame(levels, h, w, r0 + dy)
         xr = _in_frame(x, level, shift)
@@ -352,6 +375,7 @@ def _row_tile(levels, h, w, pxs, pys, pws, n, scale, r0, th, tile, c0s, tws, tap
     for s in range(n):
         fy = math.floor(pys[s])
         b0, b1, b2, b3 = _bspline4(pys[s] - fy)
+        b0, b1, b2, b3 = _pole_rows4(int(fy) - 1, h, b0, b1, b2, b3)
         p = scale * pws[s]
         for dy in range(4):
             ty = int(fy) - 1 + dy - r0
@@ -690,6 +714,7 @@ def footprint_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, c
                 _bspline_weights(pys[s] - fy, wy)
                 q = pws[s] / wsum
                 if src_kind == LATLONG:
+                    wy[0], wy[1], wy[2], wy[3] = _pole_rows4(int(fy) - 1, src_h, wy[0], wy[1], wy[2], wy[3])
                     t = _latlong_taps(levels, row_offsets, src_h, src_w, pxs[s], int(fy) - 1, wy, q, wx, idx[p],
                                       wts[p], t)
                 else:

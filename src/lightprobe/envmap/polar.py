@@ -26,6 +26,7 @@ import numpy as np
 from dataclasses import dataclass
 
 from ..layouts import Layout
+from . import pole_rows
 
 MAX_SPACING = 0.5  # source pixels between a pixel's neighbouring lookups, at most (keeps a one-pixel sun to ~0.1 %)
 MAX_SAMPLES = 16  # k×k lookups per target pixel, at most
@@ -35,8 +36,10 @@ SAMPLES = 16_000  # target pixels sampled (every stride-th) to measure the looku
 
 def no_reduction(rows: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(levels, reduced, row_offsets, caps) for a source of ``rows`` rows read as it is (the kernel reads a
-    latlong's level for every row it looks up: ``rows`` must be its height)."""
-    return np.zeros(rows, np.int64), np.zeros((1, 3), np.float32), np.zeros(rows, np.int64), np.zeros(2, np.int64)
+    latlong's level for every row it looks up: ``rows`` must be its height). The caps still cover the rows with
+    rational weights (:mod:`lightprobe.envmap.pole_rows`), which only the per-row path applies."""
+    caps = np.full(2, pole_rows.reach(rows), np.int64)
+    return np.zeros(rows, np.int64), np.zeros((1, 3), np.float32), np.zeros(rows, np.int64), caps
 
 
 def max_level(width: int) -> int:
@@ -129,7 +132,8 @@ def polar_levels(steps: Steps, source_grid: tuple[int, int], k: int) -> np.ndarr
 
 def row_layout(levels: np.ndarray, width: int) -> tuple[np.ndarray, np.ndarray, int]:
     """Where each reduced row sits: (row_offsets (H,), caps (2,), total reduced pixels); ``caps`` is how many rows
-    at the north and south ends the reduced rows reach (footprint tiles stay clear of them)."""
+    at the north and south ends the reduced rows — or the rows with rational weights near the poles
+    (:mod:`lightprobe.envmap.pole_rows`) — reach: plain footprint tiles stay clear of them."""
     h = levels.size
     widths = np.where(levels > 0, width >> levels, 0)
     row_offsets = np.zeros(h, np.int64)
@@ -137,6 +141,7 @@ def row_layout(levels: np.ndarray, width: int) -> tuple[np.ndarray, np.ndarray, 
     nonzero = np.nonzero(levels)[0]
     north, south = nonzero[nonzero < h / 2], nonzero[nonzero >= h / 2]
     caps = np.array([north[-1] + 1 if north.size else 0, h - south[0] if south.size else 0], np.int64)
+    caps = np.maximum(caps, pole_rows.reach(h))
     return row_offsets, caps, int(widths.sum())
 
 

@@ -81,11 +81,11 @@ def resample(
     :func:`supersampling`), so ∫L dω is conserved (to ~0.1 % even for a sun of one pixel) and a uniform map stays
     exactly uniform; sources with over 16 pixels per target pixel are first box-reduced (exactly
     energy-preserving), and a latlong source's polar rows are read from their reductions in azimuth where the
-    lookups would skip columns (:mod:`lightprobe.envmap.polar`; the first row at each pole stays over-weighted,
-    1.25× its solid angle). ``rotation`` R turns the environment: the target at direction d shows the source at Rᵀd.
-    The work is one compiled pass (:mod:`lightprobe.envmap.fused`) whose memory is the output; an unturned lat-long
-    into a cube reads each footprint for its images under the cube's symmetries
-    (:mod:`lightprobe.envmap.cube_symmetry`).
+    lookups would skip columns (:mod:`lightprobe.envmap.polar`), with rational spline weights in the rows next to
+    the poles so each row keeps its solid angle (:mod:`lightprobe.envmap.pole_rows`). ``rotation`` R turns the
+    environment: the target at direction d shows the source at Rᵀd. The work is one compiled pass
+    (:mod:`lightprobe.envmap.fused`) whose memory is the output; an unturned lat-long into a cube reads each
+    footprint for its images under the cube's symmetries (:mod:`lightprobe.envmap.cube_symmetry`).
     """
     plan = _plan(source, target, size, rotation, samples)
     if plan is None:
@@ -408,7 +408,9 @@ def _axes(lay: Layout) -> np.ndarray:
 def reference_resample(source: EnvMap, target: Layout, grid: tuple[int, ...], k: int,
                        rotation: np.ndarray | None) -> EnvMap:
     """The numpy formulation of :func:`resample` (k×k lookups per target pixel, in chunks): the reference the
-    compiled kernel is tested against, and the path for layouts it does not know."""
+    compiled kernel is tested against, and the path for layouts it does not know. Its lookups are the layout's
+    plain B-spline: near a lat-long source's poles it lacks the kernel's rational row weights (the tests compare the
+    two on sources under :data:`lightprobe.envmap.pole_rows.MIN_HEIGHT` rows, where the kernel has none either)."""
     lookup = source.layout.sampler(source.data, "bspline")
     sub = (np.arange(k) + 0.5) / k
     h, w = grid[-2:]
