@@ -459,16 +459,19 @@ def _footprint(src, face, padded, levels, reduced, row_offsets, caps, pxs, pys, 
 
     The subsamples' 4×4 taps overlap: their weights are first summed into one tile of source taps, which is then
     read once (a k = 3 footprint reads ~25 taps instead of 144). Returns False, touching nothing, when the taps
-    span more than TILE × TILE (near a latlong's poles and seam) or leave the padded image, for the caller to look
-    up directly. Footprints reaching a latlong's reduced polar rows (``caps``: how many rows at the north and south
-    ends have a reduction) are summed in each row's own frame (:func:`_polar_footprint`)."""
+    span more than TILE × TILE (near a latlong's seam) or leave the padded image, for the caller to look up
+    directly. Footprints reaching a latlong's reduced polar rows (``caps``: how many rows at the north and south
+    ends have a reduction) are summed in each row's own frame (:func:`_polar_footprint`), where a row's taps are
+    counted in its reduced columns: a footprint wider than TILE source columns near a pole fits there."""
     pad = 2 if padded else 0
     c0, r0, tw, th = _tile_bounds(pxs, pys, n, pad)
-    if tw > TILE or th > TILE:
+    if th > TILE:
         return False
     h, w = src.shape[1], src.shape[2]
-    if not padded and (r0 < caps[0] or r0 + th > h - caps[1]):
+    if not padded and (r0 < caps[0] or r0 + th > h - caps[1]):  # before the width test: its rows are narrower
         return _polar_footprint(src, levels, reduced, row_offsets, pxs, pys, pws, n, scratch, tile, acc)
+    if tw > TILE:
+        return False
     inside = r0 >= 0 and r0 + th <= h and c0 >= 0 and c0 + tw <= w
     if padded and not inside:
         return False
