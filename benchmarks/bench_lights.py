@@ -6,7 +6,8 @@ counts beside the paper's Table 1; hybrid irradiance against brute force; speed 
 quality: the bunny and the dragon on the ground under each probe (turned so its brightest light is behind the
 camera's left, as ``lightprobe render`` does), rendered by ``sh`` (SH9), ``lights`` (16 shadow rays per light),
 ``lights --ao`` (16 occlusion rays), ``mediancut`` and ``varmin`` with as many point lights as ``lights`` found
-(the next power of two, so the baselines never have fewer), all at 2×2 samples per pixel, against Mitsuba 3's
+(``--baseline-count pow2``: the next power of two, the papers' own cuts), all at 2×2 samples per pixel, against
+Mitsuba 3's
 direct lighting with shadows: relative MSE and HDR-FLIP.
 """
 
@@ -52,7 +53,7 @@ HYBRID_PROBES = {"grace": "debevec/angular/grace_probe.hdr", "rnl": "debevec/ang
                  "rooitou": "polyhaven_1k/rooitou_park_1k.hdr", "immenstadter": "polyhaven_1k/immenstadter_horn_1k.hdr"}
 
 
-def quality(size: int, spp: int) -> None:
+def quality(size: int, spp: int, baseline_count: str = "same") -> None:
     print(f"\n## against Mitsuba 3 ({size}×{size}, reference {spp} spp, direct light with shadows)")
     print(f"{'scene':22s} {'lights':>6s} " + " ".join(f"{m:>16s}" for m in ("sh", "lights", "lights --ao",
                                                                                "mediancut", "varmin")))
@@ -66,7 +67,7 @@ def quality(size: int, spp: int) -> None:
             tracer = Tracer(scene)
             lights = method("lights", light_samples=16)
             found = len(lights.decomposition(scene).lights)
-            count = 1 << max(0, math.ceil(math.log2(max(found, 1))))
+            count = max(found, 1) if baseline_count == "same" else 1 << max(0, math.ceil(math.log2(max(found, 1))))
             truth = reference_render(scene, spp=spp).image
             methods = {"sh": method("sh"), "lights": lights,
                        "ao": method("lights", light_samples=16, ao=True, ao_samples=16),
@@ -158,6 +159,9 @@ def main() -> int:
     parser.add_argument("--size", type=int, default=128)
     parser.add_argument("--reference-spp", type=int, default=1024)
     parser.add_argument("--previews", type=Path, help="write Table 1's preview pictures (PNG) into this folder")
+    parser.add_argument("--baseline-count", choices=("same", "pow2"), default="same",
+                        help="quality: point lights for mediancut/varmin — as many as the area lights found, or "
+                             "the next power of two")
     args = parser.parse_args()
     paths = [SHARED / p for p in (*PROBES.values(), *MESHES.values(), *HYBRID_PROBES.values())]
     if not require(*paths):
@@ -169,7 +173,7 @@ def main() -> int:
     if args.part in ("hybrid", "all"):
         hybrid()
     if args.part in ("quality", "all"):
-        quality(args.size, args.reference_spp)
+        quality(args.size, args.reference_spp, args.baseline_count)
     return 0
 
 

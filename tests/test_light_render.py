@@ -164,8 +164,8 @@ def test_shadows_darken_the_ground_under_the_bunny():
 def test_absurd_sample_counts_are_refused(options):
     with pytest.raises(UsageError, match="from 1 to"):
         method("lights", **options)
-    with pytest.raises(UsageError, match="power of two"):
-        method("varmin", count=12)
+    with pytest.raises(UsageError, match="whole number of lights"):
+        method("varmin", count=0)
 
 
 def _run(capsys, *argv):
@@ -182,7 +182,7 @@ def test_the_render_command_takes_the_new_methods(tmp_path, capsys):
         out = tmp_path / f"{argv[1]}.exr"
         code, said, err = _run(capsys, "render", mesh, "--size", "24x24", "--spp", 1, "-o", out, *argv)
         assert code == 0 and out.exists(), err
-    for argv in (["-m", "lights", "--light-samples", 0], ["-m", "mediancut", "--count", 6]):
+    for argv in (["-m", "lights", "--light-samples", 0], ["-m", "mediancut", "--count", 5000]):
         code, _, err = _run(capsys, "render", mesh, "--size", "24x24", "-o", tmp_path / "bad.exr", *argv)
         lines = err.strip().splitlines()
         assert code == 2 and len(lines) == 1 and lines[0].startswith("lightprobe: error: "), err
@@ -191,8 +191,8 @@ def test_the_render_command_takes_the_new_methods(tmp_path, capsys):
 
 def test_against_mitsuba_lights_beat_sh_and_median_cut():
     """The bunny on the ground under Galileo's tomb, 64² against Mitsuba 3 (direct light, with shadows): relative
-    MSE of ``lights`` below ``sh``; ``--ao`` lower again, and below ``mediancut`` with as many lights (the next
-    power of two). Plain ``lights`` does *not* beat median cut here (0.063 against 0.045 when measured): its ambient
+    MSE of ``lights`` below ``sh``; ``--ao`` lower again, and below ``mediancut`` with as many point lights as
+    area lights. Plain ``lights`` does *not* beat median cut here (0.063 against 0.045 when measured): its ambient
     — most of this map's power — lights the ground under the bunny unshadowed, the weakness the paper's §5 names,
     while median cut's point lights carry the whole map with shadows. The table over seven probes is
     benchmarks/bench_lights.py."""
@@ -201,7 +201,7 @@ def test_against_mitsuba_lights_beat_sh_and_median_cut():
     truth = reference_render(scene, spp=256).image
     lights = method("lights", light_samples=16)
     found = len(lights.decomposition(scene).lights)
-    count = 1 << max(0, math.ceil(math.log2(max(found, 1))))
+    count = max(found, 1)
     err = {name: relative_mse(render(scene, m, 2).image, truth) for name, m in
            (("sh", method("sh")), ("lights", lights), ("mediancut", method("mediancut", count=count)),
             ("ao", method("lights", light_samples=16, ao=True, ao_samples=16)))}

@@ -9,6 +9,11 @@ Both split every region at each step, so both give 2^k lights; they differ in wh
 halves the energy across the longer side; variance minimisation tries every cut of either side and takes the one
 whose two halves have the least summed energy-weighted variance of direction, Σ e·|x − centroid|², i.e. the cut
 after which each light best stands for the pixels it replaces.
+
+Any other count N (the papers give only powers of two; a user comparing with N area lights wants N): the
+⌊log₂ N⌋ whole levels of cuts, then one more cut of the N − 2^⌊log₂ N⌋ regions that most need it — for median
+cut the ones with the most energy, for variance minimisation the ones with the largest variance — so a power of
+two gives exactly the papers' lights, and N + 1 lights refine N's (:func:`_regions`).
 """
 
 from __future__ import annotations
@@ -43,11 +48,28 @@ class PointLight:
 
 
 def check_count(count) -> None:
-    """Refuse a light count the baselines cannot make (a power of two up to :data:`MAX_POINT_LIGHTS`): both split
-    every region at each step."""
-    if not isinstance(count, (int, np.integer)) or count < 1 or count > MAX_POINT_LIGHTS or count & (count - 1):
-        raise UsageError(f"median cut and variance minimisation need a power of two from 1 to "
-                         f"{MAX_POINT_LIGHTS} lights, got {count!r}")
+    """Refuse a light count the baselines cannot make: a whole number from 1 to :data:`MAX_POINT_LIGHTS`."""
+    if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or not 1 <= count <= MAX_POINT_LIGHTS:
+        raise UsageError(f"median cut and variance minimisation need a whole number of lights from 1 to "
+                         f"{MAX_POINT_LIGHTS}, got {count!r}")
+
+
+def _regions(grid: tuple[int, int], count: int, split, need) -> list[tuple[int, int, int, int]]:
+    """``count`` regions (rows [r0, r1), columns [c0, c1)) of a lat-long grid: ``split(region)`` applied to every
+    region ⌊log₂ count⌋ times, then once more to the count − 2^⌊log₂ count⌋ regions of highest ``need(region)``
+    (ties: the first), each region's halves taking its place. A region that cannot be cut stays whole, so a map
+    whose energy sits in few pixels gives fewer lights."""
+    h, w = grid
+    regions = [(0, h, 0, w)]
+    levels = int(count).bit_length() - 1
+    for _ in range(levels):
+        regions = [half for region in regions for half in split(region)]
+    extra = count - (1 << levels)
+    if extra:
+        needs = np.array([need(region) for region in regions], np.float64)
+        chosen = set(np.argsort(-needs, kind="stable")[:extra].tolist())
+        regions = [half for i, region in enumerate(regions) for half in (split(region) if i in chosen else [region])]
+    return regions
 
 
 def _working(env: EnvMap, rows: int) -> tuple[EnvMap, np.ndarray, np.ndarray]:
@@ -69,15 +91,15 @@ def median_cut(env: EnvMap, count: int, rows: int = 256) -> list[PointLight]:
     """Debevec's median cut: split the lat-long map ``log2(count)`` times, every region along its longer side
     (its width measured at its middle latitude, so a polar region is not taken for a wide one) where the luminance
     power on either side is equal; one light per region at its energy centroid, with the region's RGB power. A
+    count that is not a power of two cuts its last level's most energetic regions only (:func:`_regions`). A
     region of one pixel is not cut, so a map whose energy sits in fewer pixels than ``count`` gives fewer lights.
     The powers add up to ∫ of the working map (the resampled map: ∫L dω kept to ~1e-4)."""
     check_count(count)
     work, rgb, energy = _working(env, rows)
     h, w = work.grid
     table = _table(energy)
-    regions = [(0, h, 0, w)]  # rows [r0, r1), columns [c0, c1)
-    for _ in range(int(math.log2(count))):
-        regions = [half for region in regions for half in _split(table, region, h)]
+    regions = _regions(work.grid, count, lambda region: _split(table, region, h),
+                       lambda region: _sum(table, *region))
     return [_light(work, rgb, energy, region) for region in regions]
 
 
@@ -125,17 +147,16 @@ def variance_minimisation(env: EnvMap, count: int, rows: int = 256) -> list[Poin
     """Viriyothai & Debevec's variance minimisation: split the lat-long map ``log2(count)`` times, every region by
     the cut (any row or column boundary inside it) that minimises the two halves' summed variance
     Σ e·((sin θ_m·(φ − φ̄))² + (θ − θ̄)²) — e the pixels' luminance power, θ_m each half's middle latitude, so
-    distances are angles on the sphere near that latitude. One light per region at its energy centroid with the
-    region's RGB power (Σ = ∫ of the working map). A region of one pixel, or one without energy, is not cut."""
+    distances are angles on the sphere near that latitude. A count that is not a power of two cuts its last
+    level's regions of largest variance only (:func:`_regions`). One light per region at its energy centroid with
+    the region's RGB power (Σ = ∫ of the working map). A region of one pixel, or one without energy, is not cut."""
     check_count(count)
     work, rgb, energy = _working(env, rows)
     h, w = work.grid
     theta = (np.arange(h) + 0.5) / h * np.pi
     phi = (np.arange(w) + 0.5) / w * 2 * np.pi
     tables = _Moments(energy, theta, phi)
-    regions = [(0, h, 0, w)]
-    for _ in range(int(math.log2(count))):
-        regions = [half for region in regions for half in tables.split(region)]
+    regions = _regions(work.grid, count, tables.split, lambda region: float(tables.variance(*region)))
     return [_light(work, rgb, energy, region) for region in regions]
 
 

@@ -22,11 +22,12 @@ def register(sub) -> None:
     add_probe(p)
     p.add_argument("--output", "-o", type=Path, required=True, help="the lights JSON")
     p.add_argument("--method", choices=LIGHT_METHODS, default="arbree2005",
-                   help="arbree2005: area lights + ambient (the paper); mediancut: Debevec's 2^k point lights "
+                   help="arbree2005: area lights + ambient (the paper); mediancut: Debevec's point lights "
                         "carrying the whole map (a baseline); varmin: Viriyothai & Debevec's variance "
                         "minimisation, the same but cut where each light best stands for its pixels")
     add_option(p, "--count", type=Number(int, 1, 4096), default=16,
-               help="number of lights for --method mediancut or varmin (a power of two)")
+               help="number of lights for --method mediancut or varmin (any number; a power of two is the papers' "
+                    "own cut)")
     p.add_argument("--ambient", type=Path, help="also write the ambient map (the input's layout) to this image")
     p.add_argument("--preview", type=Path, help="also write a PNG of the probe with each light's cap outlined")
     add_option(p, "--ambient-order", type=Number(int, 0, MAX_AMBIENT_ORDER), default=12,

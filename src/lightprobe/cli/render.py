@@ -38,7 +38,7 @@ def register(sub) -> None:
                    help="lights: shadow the ambient too (brightness-weighted cosine occlusion rays)")
     add_option(p, "--ao-samples", type=Number(int, 1, 1024), default=16, help="lights --ao: rays per shading point")
     add_option(p, "--count", type=Number(int, 1, 4096), default=16,
-               help="mediancut, varmin: number of point lights (a power of two)")
+               help="mediancut, varmin: number of point lights (any number; a power of two is the papers' own cut)")
     add_option(p, "--seed", type=Number(int, 0, 2 ** 63 - 1), default=0,
                help="lights: the random generator's seed (a render is the same bit for bit for the same seed)")
     add_option(p, "--views", type=Number(int, 1, 1000), default=12,
