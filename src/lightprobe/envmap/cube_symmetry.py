@@ -12,6 +12,8 @@ An unturned lat-long source and a cube target share symmetries that the general 
 So for each pixel of the left half of a row of −Z, +Y and −Y the subsamples' directions, footprint weights and
 tile of taps (the geometry: most of the general kernel's time) are computed once, and the tile is read at its
 transformed columns for each image of the pixel: 8 target pixels for the side faces, 2 for the top and bottom.
+On −Z a subsample's direction is (−s, −t, −1), so its source column depends on s alone: tabulated once a call
+(:func:`_back_columns`), leaving one atan2 per subsample.
 A footprint the tile cannot hold, or a polar tile whose shift is not whole in a reduced row, takes the general
 path for that pixel. The result equals the general kernel's to float32 rounding (the sums are regrouped and the
 subsamples' positions rounded differently): ``tests/test_resample.py``.
@@ -22,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..jit import njit
-from .fused import (CUBE, LATLONG, TILE, _polar_tile, _row_frame, _subsamples, _sum_into_tile, _tile_bounds,
+from .fused import (CUBE, LATLONG, TILE, _polar_tile, _row_frame, _subsamples, _sum_into_tile, _tile_bounds, atan2,
                     _wrapped_column, pixel_into)
 
 # The side faces as images of −Z (face 5) under quarter turns of yaw: (face, turns); a turn is +W/4 columns.
@@ -172,15 +174,52 @@ def _scratch(k):  # pragma: no cover - compiled
             np.empty((TILE, 4), np.int64))
 
 
+@njit(cache=True, error_model="numpy")
+def _back_columns(n, k, w):  # pragma: no cover - compiled
+    """What the −Z face's subsamples share along a column: for subsample column i of pixel column c (index c·k + i,
+    left half), its source column (the lat-long azimuth depends on s alone: the direction is (−s, −t, −1)),
+    √(s² + 1) and s²."""
+    cols = (n + 1) // 2
+    table = np.empty((3, cols * k))
+    for c in range(cols):
+        for i in range(k):
+            s = 2.0 * ((c + (i + 0.5) / k) / n) - 1.0
+            table[0, c * k + i] = (atan2(-s, 1.0) / (2.0 * np.pi) + 0.5) * w - 0.5
+            table[1, c * k + i] = np.sqrt(s * s + 1.0)
+            table[2, c * k + i] = s * s
+    return table
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _back_subsamples(row, col, n, k, h, columns, pfs, pxs, pys, pws):  # pragma: no cover - compiled
+    """:func:`lightprobe.envmap.fused._subsamples` for a pixel of the −Z face into an unturned lat-long, the
+    azimuths from :func:`_back_columns`: one atan2 a subsample instead of two, the same values and order."""
+    m, wsum = 0, 0.0
+    for j in range(k):
+        t = 2.0 * ((row + (j + 0.5) / k) / n) - 1.0
+        for i in range(k):
+            q = col * k + i
+            pfs[m], pxs[m] = 0, columns[0, q]
+            pys[m] = atan2(columns[1, q], -t) / np.pi * h - 0.5
+            r = 1.0 + columns[2, q] + t * t
+            pws[m] = 4.0 / (r * np.sqrt(r))
+            wsum += pws[m]
+            m += 1
+    return m, wsum
+
+
 @njit(cache=True, inline="always", error_model="numpy")
 def _orbit(src, levels, reduced, row_offsets, caps, n, k, kinds, base, row, col, images, count, out, top,
-           work):  # pragma: no cover - compiled
+           work, columns):  # pragma: no cover - compiled
     """Target pixel (base, row, col)'s footprint, computed once, read for each of its ``count`` images:
     ``images[i]`` = (face, row, column, source column shift, mirrored), stored at out[face, row − top, column]."""
     h, w = src.shape[1], src.shape[2]
     (pfs, pxs, pys, pws), tile, scratch, (wx, wy, acc, value), (eye, valid), frames = work  # valid: all (lat-long)
     latlong, cube = kinds[0], kinds[1]
-    taps, wsum = _subsamples(cube, eye, base, row, col, n, n, k, eye, latlong, eye, h, w, pfs, pxs, pys, pws)
+    if base == BACK:
+        taps, wsum = _back_subsamples(row, col, n, k, h, columns, pfs, pxs, pys, pws)
+    else:
+        taps, wsum = _subsamples(cube, eye, base, row, col, n, n, k, eye, latlong, eye, h, w, pfs, pxs, pys, pws)
     kind, c0, r0, tw, th = _base_tile(levels, caps, h, w, pxs, pys, pws, taps, scratch, tile)
     deepest = _polar_frames(levels, h, w, r0, th, scratch, frames) if kind == POLAR else 0
     for i in range(count):
@@ -230,6 +269,7 @@ def cube_rows_into(src, levels, reduced, row_offsets, caps, n, k, kinds, poles, 
     Serial and without the GIL: the caller runs bands of rows on threads."""
     w = src.shape[2]
     work, images = _scratch(k), np.empty((8, 5), np.int64)
+    columns = _back_columns(n, k, w)  # the −Z face's azimuths, once a call
     for r in range(first, last):
         row = top + r
         for col in range((n + 1) // 2):
@@ -239,7 +279,8 @@ def cube_rows_into(src, levels, reduced, row_offsets, caps, n, k, kinds, poles, 
                 for m in range(mirrors):
                     count = _image(images, count, SIDE_FACES[i, 0], row, n - 1 - col if m else col,
                                    SIDE_FACES[i, 1] * (w // 4), m)
-            _orbit(src, levels, reduced, row_offsets, caps, n, k, kinds, BACK, row, col, images, count, out, top, work)
+            _orbit(src, levels, reduced, row_offsets, caps, n, k, kinds, BACK, row, col, images, count, out, top, work,
+                   columns)
             if not poles:
                 continue
             for base in (TOP, BOTTOM):
@@ -247,7 +288,7 @@ def cube_rows_into(src, levels, reduced, row_offsets, caps, n, k, kinds, poles, 
                 if mirrors == 2:
                     count = _image(images, count, base, row, n - 1 - col, 0, 1)
                 _orbit(src, levels, reduced, row_offsets, caps, n, k, kinds, base, row, col, images, count, out, top,
-                       work)
+                       work, columns)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})
@@ -258,6 +299,7 @@ def polar_faces_into(src, levels, reduced, row_offsets, caps, n, k, kinds, out, 
     ``last − 1`` of that triangle, and read for its 8 images. Arguments as for :func:`cube_rows_into`."""
     w = src.shape[2]
     work, images = _scratch(k), np.empty((8, 5), np.int64)
+    columns = np.empty((3, 0))  # no −Z pixel here
     for r0 in range(first, last):
         for c0 in range(r0, (n - 1) // 2 + 1):
             for base in (TOP, BOTTOM):
@@ -267,4 +309,4 @@ def polar_faces_into(src, levels, reduced, row_offsets, caps, n, k, kinds, out, 
                     count = _image(images, count, base, r, n - 1 - c, (4 - turn) % 4 * (w // 4), 1)
                     r, c = (c, n - 1 - r) if base == TOP else (n - 1 - c, r)
                 _orbit(src, levels, reduced, row_offsets, caps, n, k, kinds, base, r0, c0, images, count, out, 0,
-                       work)
+                       work, columns)
