@@ -99,56 +99,20 @@ def _read_plain(src, h, w, c0, r0, tw, th, tile, shift, mirror, acc):  # pragma:
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _polar_frames(levels, h, w, r0, th, scratch, frames):  # pragma: no cover - compiled
-    """Each row of a polar tile's frame, once for all its images: frames[ty] = (source row, level, width, first
-    column brought within [0, width) — or −1 where the row's run of columns crosses the seam or reaches further
-    than a turn). Returns the tile's deepest level (a shift must be a whole number of its columns)."""
-    c0s, tws = scratch[0], scratch[1]
-    deepest = 0
-    for ty in range(th):
-        row, level, width, _ = _row_frame(levels, h, w, r0 + ty)
-        c0 = c0s[ty]
-        if c0 < 0:
-            c0 += width
-        elif c0 >= width:
-            c0 -= width
-        frames[ty, 0], frames[ty, 1], frames[ty, 2] = row, level, width
-        frames[ty, 3] = c0 if 0 <= c0 and c0 + tws[ty] <= width else -1
-        deepest = max(deepest, level)
-    return deepest
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _read_polar(src, reduced, row_offsets, th, tile, scratch, frames, deepest, shift, mirror,
+def _read_polar(src, levels, reduced, row_offsets, h, w, r0, th, tile, scratch, shift, mirror,
                 acc):  # pragma: no cover - compiled
-    """:func:`_read_plain` for a tile of per-row frames (:func:`lightprobe.envmap.fused._polar_tile`,
-    :func:`_polar_frames`); False, touching nothing, if ``shift`` is not a whole number of a reduced row's columns.
-    A row whose mirrored and shifted columns stay one run in [0, width) — most rows — is read as that run."""
-    if (shift >> deepest) << deepest != shift:
-        return False
+    """:func:`_read_plain` for a tile of per-row frames (:func:`lightprobe.envmap.fused._polar_tile`); False,
+    touching nothing, if ``shift`` is not a whole number of a reduced row's columns."""
+    for ty in range(th):
+        level = _row_frame(levels, h, w, r0 + ty)[1]
+        if (shift >> level) << level != shift:
+            return False
     c0s, tws = scratch[0], scratch[1]
     r, g, b = 0.0, 0.0, 0.0
     for ty in range(th):
-        row, level, width, c0, tw = frames[ty, 0], frames[ty, 1], frames[ty, 2], frames[ty, 3], tws[ty]
+        row, level, width, _ = _row_frame(levels, h, w, r0 + ty)
         moved = shift >> level
-        line = src[0, row] if level == 0 else reduced[row_offsets[row]:row_offsets[row] + width]
-        col, step = -1, 0
-        if c0 >= 0:
-            col, step = (width - 1 - c0 + moved, -1) if mirror else (c0 + moved, 1)
-            low = col - (tw - 1) if mirror else col
-            if low >= width:  # the whole run past the seam: one turn back
-                col -= width
-            elif low + tw > width:  # it would wrap: column by column
-                step = 0
-        if step != 0:
-            for tx in range(tw):
-                k = tile[ty, tx]
-                r += k * line[col, 0]
-                g += k * line[col, 1]
-                b += k * line[col, 2]
-                col += step
-            continue
-        for tx in range(tw):
+        for tx in range(tws[ty]):
             col = _wrapped_column(c0s[ty] + tx, width)
             if mirror:
                 col = width - 1 - col
@@ -156,22 +120,26 @@ def _read_polar(src, reduced, row_offsets, th, tile, scratch, frames, deepest, s
             if col >= width:
                 col -= width
             k = tile[ty, tx]
-            r += k * line[col, 0]
-            g += k * line[col, 1]
-            b += k * line[col, 2]
+            if level == 0:
+                r += k * src[0, row, col, 0]
+                g += k * src[0, row, col, 1]
+                b += k * src[0, row, col, 2]
+            else:
+                i = row_offsets[row] + col
+                r += k * reduced[i, 0]
+                g += k * reduced[i, 1]
+                b += k * reduced[i, 2]
     acc[0], acc[1], acc[2] = r, g, b
     return True
 
 
 @njit(cache=True, error_model="numpy")
 def _scratch(k):  # pragma: no cover - compiled
-    """Per-call scratch: subsamples (faces, columns, rows, weights), the tile and its per-row columns, lookups,
-    the identity turn and all-valid table the general path takes, and a polar tile's row frames (made once a call,
-    not once a pixel)."""
+    """Per-call scratch: subsamples (faces, columns, rows, weights), the tile and its per-row frames, lookups, and
+    the identity turn and all-valid table the general path takes (made once a call, not once a pixel)."""
     return ((np.empty(k * k + 1, np.int64), np.empty(k * k + 1), np.empty(k * k + 1), np.empty(k * k + 1)),
             np.empty((TILE, TILE)), (np.empty(TILE, np.int64), np.empty(TILE, np.int64), np.empty((k * k + 1, 4, 2))),
-            (np.empty(4), np.empty(4), np.empty(3), np.empty(3)), (np.eye(3), np.ones((1, 1, 1), np.float32)),
-            np.empty((TILE, 4), np.int64))
+            (np.empty(4), np.empty(4), np.empty(3), np.empty(3)), (np.eye(3), np.ones((1, 1, 1), np.float32)))
 
 
 @njit(cache=True, error_model="numpy")
@@ -214,21 +182,20 @@ def _orbit(src, levels, reduced, row_offsets, caps, n, k, kinds, base, row, col,
     """Target pixel (base, row, col)'s footprint, computed once, read for each of its ``count`` images:
     ``images[i]`` = (face, row, column, source column shift, mirrored), stored at out[face, row − top, column]."""
     h, w = src.shape[1], src.shape[2]
-    (pfs, pxs, pys, pws), tile, scratch, (wx, wy, acc, value), (eye, valid), frames = work  # valid: all (lat-long)
+    (pfs, pxs, pys, pws), tile, scratch, (wx, wy, acc, value), (eye, valid) = work  # valid: every tap (lat-long)
     latlong, cube = kinds[0], kinds[1]
     if base == BACK:
         taps, wsum = _back_subsamples(row, col, n, k, h, columns, pfs, pxs, pys, pws)
     else:
         taps, wsum = _subsamples(cube, eye, base, row, col, n, n, k, eye, latlong, eye, h, w, pfs, pxs, pys, pws)
     kind, c0, r0, tw, th = _base_tile(levels, caps, h, w, pxs, pys, pws, taps, scratch, tile)
-    deepest = _polar_frames(levels, h, w, r0, th, scratch, frames) if kind == POLAR else 0
     for i in range(count):
         face, r, c, shift, mirror = images[i, 0], images[i, 1], images[i, 2], images[i, 3], images[i, 4] == 1
         done = kind != NO_TILE
         if kind == PLAIN:
             _read_plain(src, h, w, c0, r0, tw, th, tile, shift, mirror, acc)
         elif kind == POLAR:
-            done = _read_polar(src, reduced, row_offsets, th, tile, scratch, frames, deepest, shift, mirror, acc)
+            done = _read_polar(src, levels, reduced, row_offsets, h, w, r0, th, tile, scratch, shift, mirror, acc)
         if done:
             for ch in range(3):
                 out[face, r - top, c, ch] = acc[ch] / wsum
@@ -240,7 +207,6 @@ def _orbit(src, levels, reduced, row_offsets, caps, n, k, kinds, base, row, col,
         if kind != NO_TILE:  # the general path used the scratch: the tile is rebuilt for the other images
             taps, wsum = _subsamples(cube, eye, base, row, col, n, n, k, eye, latlong, eye, h, w, pfs, pxs, pys, pws)
             kind, c0, r0, tw, th = _base_tile(levels, caps, h, w, pxs, pys, pws, taps, scratch, tile)
-            deepest = _polar_frames(levels, h, w, r0, th, scratch, frames) if kind == POLAR else 0
 
 
 @njit(cache=True, inline="always", error_model="numpy")
