@@ -16,10 +16,39 @@ COMPILE_WORTH = 1 << 28
 
 prange = range  # replaced in each kernel's module by numba.prange when the first kernel there compiles
 
+# numba's array support imports scipy.linalg (its cython BLAS, ~26 MiB resident: 15 of heap, 11 of library pages —
+# a convert's peak on a 4k map is ~3.4× the map) only to learn whether np.dot and np.linalg may compile in nopython
+# mode. No lightprobe kernel uses them, so the ``lightprobe`` command, which runs no one else's kernels, sets this
+# (:func:`lean`) and numba loads without it. A library user's process is left as numba makes it: their own kernels
+# may need np.dot.
+_LEAN = False
+_BLAS_PROBE = "scipy.linalg.cython_blas"
+
+
+def lean() -> None:
+    """Load numba, when a kernel first needs it, without scipy's BLAS (see :data:`_LEAN`): for processes that run
+    lightprobe's kernels only."""
+    global _LEAN
+    _LEAN = True
+
+
+def import_numba():
+    """``import numba``; under :func:`lean`, numba's array support loads with the BLAS probe's import refused — a
+    None in ``sys.modules`` halts that one import, and is removed at once, so scipy imports as usual afterwards."""
+    if _LEAN and "numba.np.arraymath" not in sys.modules and _BLAS_PROBE not in sys.modules:
+        sys.modules[_BLAS_PROBE] = None
+        try:
+            import numba.np.arraymath  # noqa: F401  (its _HAVE_BLAS is False: np.dot is not compiled)
+        finally:
+            del sys.modules[_BLAS_PROBE]
+    import numba
+
+    return numba
+
 
 def use_threads() -> None:
     """numba's kernels run on :func:`lightprobe.limits.threads` threads (at most the pool numba started with)."""
-    import numba
+    numba = import_numba()
 
     from .limits import threads
 
@@ -52,8 +81,7 @@ def njit(**options):
         def compiled():
             nonlocal dispatcher
             if dispatcher is None:
-                import numba
-
+                numba = import_numba()
                 use_threads()
                 fn.__globals__["prange"] = numba.prange
                 dispatcher = numba.njit(**options)(fn)

@@ -10,10 +10,10 @@ remaining weights are renormalised, so a disc's black corners never bleed into i
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
 
-from .jit import use_threads
+from .jit import import_numba, use_threads
 
+njit, prange = import_numba().njit, import_numba().prange
 use_threads()  # LIGHTPROBE_THREADS, as for the kernels compiled through lightprobe.jit
 
 

@@ -65,8 +65,11 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status (0 ok, 2 bad input or usage, 128 + N after signal N)."""
     from ..files import Terminated, raise_on_termination
 
+    from ..jit import lean
+
     warnings.showwarning = _one_line_warnings()
     raise_on_termination()
+    lean()  # numba, if a kernel runs, without scipy's BLAS: only lightprobe's kernels run here
     try:
         from ..limits import threads
 
