@@ -20,7 +20,7 @@ import math
 import numpy as np
 
 from ..jit import njit
-from .pole_rows import FACTORS as POLE_FACTORS, MIN_HEIGHT as POLE_MIN_HEIGHT, REACH as POLE_REACH
+from .pole_rows import FACTORS as POLE_FACTORS, TIER_HEIGHTS as POLE_TIER_HEIGHTS, TIER_REACH as POLE_REACH
 
 LATLONG, CUBE, ANGULAR, SPHERE = 0, 1, 2, 3
 CODES = {"latlong": LATLONG, "cube": CUBE, "angular": ANGULAR, "sphere": SPHERE}
@@ -195,22 +195,35 @@ def _reflected_row(row, h):  # pragma: no cover - compiled
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _pole_factor(row, h):  # pragma: no cover - compiled
+def _pole_tier(h):  # pragma: no cover - compiled
+    """The tier of :data:`lightprobe.envmap.pole_rows.TIERS` a latlong of h rows takes (−1: plain B-spline)."""
+    for t in range(POLE_TIER_HEIGHTS.size):
+        if h >= POLE_TIER_HEIGHTS[t]:
+            return t
+    return -1
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _pole_factor(row, h, tier):  # pragma: no cover - compiled
     """The rational weight factor a_j of a latlong tap row (past a pole or not): j rows from its pole."""
     src, _ = _reflected_row(row, h)
     j = min(src, h - 1 - src)
-    return POLE_FACTORS[j] if j < POLE_REACH else 1.0
+    return POLE_FACTORS[tier, j] if j < POLE_REACH[tier] else 1.0
 
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _pole_rows4(r0, h, b0, b1, b2, b3):  # pragma: no cover - compiled
     """The y weights of latlong tap rows r0 … r0 + 3, made rational where a row is near a pole (a_j B_j / Σ a_m
     B_m, :mod:`lightprobe.envmap.pole_rows`: each row keeps its ∫ dω; the plain B-spline over-counts the first
-    row by 25 %), unchanged elsewhere and in maps under POLE_MIN_HEIGHT rows."""
-    if h < POLE_MIN_HEIGHT or (r0 >= POLE_REACH and r0 + 3 < h - POLE_REACH):
+    row by 25 %), unchanged elsewhere and in maps under pole_rows.MIN_HEIGHT rows."""
+    tier = _pole_tier(h)
+    if tier < 0:
         return b0, b1, b2, b3
-    c0, c1 = b0 * _pole_factor(r0, h), b1 * _pole_factor(r0 + 1, h)
-    c2, c3 = b2 * _pole_factor(r0 + 2, h), b3 * _pole_factor(r0 + 3, h)
+    reach = POLE_REACH[tier]
+    if r0 >= reach and r0 + 3 < h - reach:
+        return b0, b1, b2, b3
+    c0, c1 = b0 * _pole_factor(r0, h, tier), b1 * _pole_factor(r0 + 1, h, tier)
+    c2, c3 = b2 * _pole_factor(r0 + 2, h, tier), b3 * _pole_factor(r0 + 3, h, tier)
     s = c0 + c1 + c2 + c3
     return c0 / s, c1 / s, c2 / s, c3 / s
 

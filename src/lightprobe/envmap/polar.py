@@ -63,6 +63,10 @@ class Steps:
     x: np.ndarray
     y: np.ndarray
     row: np.ndarray  # the pixel centre's source row coordinate (row r's centre at r)
+    # The target's rows are the source's (a lat-long, unturned or turned about the vertical): its lookups keep
+    # their column spacing at any row. Any other target is locally flat, and nearer the pole than a pixel's centre
+    # the same arc between its lookups spans more columns.
+    rows_aligned: bool = False
 
 
 def no_steps() -> Steps:
@@ -106,7 +110,8 @@ def _measured_steps(source: Layout, source_grid: tuple[int, ...], target: Layout
     step_x, step_y = np.maximum(*xs), np.maximum(*ys)
     theta = ((np.asarray(y0) + 0.5) / source_grid[-2] * math.pi if source.name == "latlong"
              else np.full(step_x.shape, np.nan))
-    steps = Steps(theta, step_x, step_y, np.asarray(y0, np.float64))
+    aligned = target.name == "latlong" and (rotation is None or abs(rotation[1, 1]) > 1 - 1e-12)
+    steps = Steps(theta, step_x, step_y, np.asarray(y0, np.float64), aligned)
     for values in (steps.theta, steps.x, steps.y, steps.row):
         values.setflags(write=False)  # shared by every caller of this geometry
     return steps
@@ -127,22 +132,34 @@ def samples_needed(steps: Steps, at_least: int) -> int:
 def polar_levels(steps: Steps, source_grid: tuple[int, int], k: int) -> np.ndarray:
     """Per source row (H,) int64, its reduction level ℓ (0: read as it is): in the polar caps, the least ℓ that
     brings the widest lookup spacing in azimuth among the sampled pixels reaching the row within
-    :data:`MAX_SPACING` reduced columns."""
+    :data:`MAX_SPACING` reduced columns; :func:`max_level` + 1 where even the deepest reduction leaves the lookups
+    further apart — the rows next to a pole under a coarse target — which are then read as their whole row's mean
+    (:func:`reduced_rows`): a few wedges of azimuth meeting at the pole, each hit or missed by the target's
+    subsamples, took a pole-row sun ±2–7 % off in 32–80 pixel angular, mirror-ball and small cube targets."""
     h, w = source_grid
     spacing = np.zeros(h)
     if steps.x.size:  # each sampled pixel's spacing goes to every row its lookups' B-spline taps reach
         reach = steps.y / 2 + 2.0
         first = np.floor(steps.row - reach).astype(np.int64) + 1
         count = np.ceil(steps.row + reach).astype(np.int64) - first
+        centre = np.sin(steps.theta)
         for offset in range(int(count.max())):
             rows = first + offset
             hit = (offset < count) & (rows >= 0) & (rows < h)  # rows past a pole are the pole's own: reached
-            np.maximum.at(spacing, rows[hit], steps.x[hit] / k)
+            spread = 1.0
+            if not steps.rows_aligned:  # nearer the pole than the centre, one arc spans more columns (∝ 1/sin θ)
+                spread = np.maximum(centre / np.sin((np.clip(rows, 0, h - 1) + 0.5) / h * math.pi), 1.0)
+            np.maximum.at(spacing, rows[hit], (steps.x / k * spread)[hit])
     need = np.ceil(np.log2(np.maximum(spacing, 1e-300) / MAX_SPACING) - 1e-9)
-    levels = np.clip(need, 0, max_level(w)).astype(np.int64)
+    levels = np.clip(need, 0, max_level(w) + 1).astype(np.int64)
     cos = np.cos((np.arange(h) + 0.5) / h * math.pi)
     levels[np.abs(cos) < CAP_COS] = 0
     return levels
+
+
+def kernel_levels(levels: np.ndarray, width: int) -> np.ndarray:
+    """:func:`polar_levels` as the kernel reads them: a whole-row level (max_level + 1) is stored at max_level."""
+    return np.minimum(levels, max_level(width))
 
 
 def row_layout(levels: np.ndarray, width: int) -> tuple[np.ndarray, np.ndarray, int]:
@@ -150,6 +167,7 @@ def row_layout(levels: np.ndarray, width: int) -> tuple[np.ndarray, np.ndarray, 
     at the north and south ends the reduced rows — or the rows with rational weights near the poles
     (:mod:`lightprobe.envmap.pole_rows`) — reach: plain footprint tiles stay clear of them."""
     h = levels.size
+    levels = kernel_levels(levels, width)
     widths = np.where(levels > 0, width >> levels, 0)
     row_offsets = np.zeros(h, np.int64)
     np.cumsum(widths[:-1], out=row_offsets[1:])
@@ -163,14 +181,21 @@ def row_layout(levels: np.ndarray, width: int) -> tuple[np.ndarray, np.ndarray, 
 def reduced_rows(data: np.ndarray, levels: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(levels, reduced, row_offsets, caps) for the kernel: row r of a latlong image (H, W, 3) with level ℓ > 0
     becomes W / 2^ℓ means of 2^ℓ columns at ``reduced[row_offsets[r]:]`` (:func:`row_layout`), by ℓ halvings
-    (each the mean of a pair in float32: ``(a + b) · ½``, the same bits as numpy's ``(x[0::2] + x[1::2]) * ½``)."""
+    (each the mean of a pair in float32: ``(a + b) · ½``, the same bits as numpy's ``(x[0::2] + x[1::2]) * ½``).
+    A whole-row level (:func:`polar_levels`) fills its row at max_level with the mean of those W / 2^max_level
+    values (in float64: a uniform row stays exactly uniform); the returned levels are the kernel's."""
     h, w = data.shape[:2]
     if not levels.any():
         return no_reduction(h)
-    levels = levels.astype(np.int64)
+    whole = np.nonzero(levels > max_level(w))[0]
+    levels = kernel_levels(levels.astype(np.int64), w)
     row_offsets, caps, total = row_layout(levels, w)
     reduced = np.empty((total, 3), np.float32)
     _halve_rows(np.ascontiguousarray(data, np.float32), np.nonzero(levels)[0], levels, row_offsets, reduced)
+    width = w >> max_level(w)
+    for r in whole:  # a few rows at each pole
+        row = reduced[row_offsets[r]:row_offsets[r] + width]
+        row[:] = row.mean(axis=0, dtype=np.float64).astype(np.float32)
     return levels, reduced, row_offsets, caps
 
 

@@ -8,14 +8,16 @@ round, and with dω ∝ θ dθ there the first row's weight integrates to 1.25×
 moment (1/3 against a box's 1/12) meeting the pole: any partition of unity that is the B-spline further out keeps
 the same total excess over the rows near the pole, so it cannot be removed, only spread.
 
-Here it is spread. Within :data:`ROWS` + 2 rows of a pole each row j gets a factor a_j and the four tap weights
-become the rational B-spline a_j B_j / Σ_m a_m B_m — still a partition of unity, so a uniform map stays exactly
-uniform — with the a_j solved so that each of the first :data:`ROWS` rows carries the same small relative excess
-ε and the rows after them none: ε = 0.043 % of a row's energy at ROWS = 24 (and under 0.05 % for any source of at
-least :data:`MIN_HEIGHT` rows; ``tests/test_resample.py`` measures it with the sin θ measure of real grids).
+Here it is spread. Within ROWS + 2 rows of a pole each row j gets a factor a_j and the four tap weights become
+the rational B-spline a_j B_j / Σ_m a_m B_m — still a partition of unity, so a uniform map stays exactly uniform —
+with the a_j solved so that each of the first ROWS rows carries the same small relative excess ε and the rows after
+them none: ε ≈ 0.25 / ROWS². ROWS grows with the map (:data:`TIERS`): 24 rows (ε = 0.043 %) from 96 rows up, 16
+(0.098 %) from 64 and 12 (0.17 %) from 48 — the rows of both poles must not meet. Shorter maps keep the plain
+B-spline (their first row +25 %): a resampler box-reduces a source to fewer than 48 rows only for targets of a few
+hundred pixels. ``tests/test_resample.py`` measures ε with the sin θ measure of real grids.
 
 The factors are solved by :func:`solve` on the limit measure dω ∝ (y + ½) dy (y: the row coordinate, row j's centre
-at j, the pole at −½), by Gauss–Newton on log a_j, and written out in :data:`FACTORS` (the solve takes 30 ms, which
+at j, the pole at −½), by Gauss–Newton on log a_j, and written out in :data:`FACTORS` (the solves take 60 ms, which
 every command that imports the resampler would pay; ``tests/test_resample.py`` solves again and compares). The
 kernel in :mod:`lightprobe.envmap.fused` reads them.
 """
@@ -24,9 +26,10 @@ from __future__ import annotations
 
 import numpy as np
 
-ROWS = 24  # rows at each pole sharing the excess: ε ≈ 0.125 / Σ_{j<ROWS} (j + ½) = 0.043 %
-REACH = ROWS + 2  # rows whose factor is not 1 (two more than ROWS, which take none of the excess)
-MIN_HEIGHT = 4 * ROWS  # shorter maps keep the plain B-spline (their poles' rows overlap): the first row +25 %
+TIERS = ((96, 24), (64, 16), (48, 12))  # (least map height, ROWS): each pole's rows stay within a quarter of the map
+ROWS = TIERS[0][1]  # the most rows sharing the excess (maps of 96 rows or more): ε ≈ 0.125 / Σ_{j<ROWS} (j + ½)
+REACH = ROWS + 2  # the most rows whose factor is not 1 (two more than ROWS, which take none of the excess)
+MIN_HEIGHT = TIERS[-1][0]  # shorter maps keep the plain B-spline (their poles' rows would overlap): first row +25 %
 
 
 def bspline(t: np.ndarray) -> np.ndarray:
@@ -81,16 +84,33 @@ def solve(rows: int = ROWS) -> tuple[np.ndarray, float]:
     return np.exp(p[:-1]), float(p[-1])
 
 
-# solve(24): a_0 … a_25, and the excess each of the first 24 rows carries (as a fraction of its own energy)
+# solve(ROWS) for each tier: a_0 … a_{ROWS+1}, padded with 1 to REACH; and the excess each of the first ROWS rows
+# carries (as a fraction of its own energy)
 FACTORS = np.array([
-    0.277466917158, 0.431335141983, 0.517060255119, 0.584712699497, 0.640418352691, 0.688008407443,
-    0.729497391189, 0.766124652664, 0.798707149919, 0.827814634532, 0.853861995986, 0.877162202419,
-    0.897958504171, 0.916444989452, 0.932780228901, 0.947096630889, 0.959507032036, 0.970109446994,
-    0.978990557851, 0.986228319693, 0.991893925833, 0.996053389656, 0.998767754256, 1.000106199335,
-    0.999992065199, 1.000000693134])
-EXCESS = 4.34029063e-4
+    [0.277466917158, 0.431335141983, 0.517060255119, 0.584712699497, 0.640418352691, 0.688008407443,
+     0.729497391189, 0.766124652664, 0.798707149919, 0.827814634532, 0.853861995986, 0.877162202419,
+     0.897958504171, 0.916444989452, 0.932780228901, 0.947096630889, 0.959507032036, 0.970109446994,
+     0.978990557851, 0.986228319693, 0.991893925833, 0.996053389656, 0.998767754256, 1.000106199335,
+     0.999992065199, 1.000000693134],
+    [0.323125118707, 0.501867833255, 0.600626748510, 0.677550350826, 0.739684066151, 0.791419966792,
+     0.835054630962, 0.871997965872, 0.903182299037, 0.929265096393, 0.950735522542, 0.967975267190,
+     0.981295282194, 0.990959169691, 0.997196160161, 1.000239087619, 0.999982310307, 1.000001531846,
+     1, 1, 1, 1, 1, 1, 1, 1],
+    [0.360073931926, 0.558562168410, 0.666947614496, 0.749788608265, 0.814818652024, 0.866853144288,
+     0.908413047679, 0.941065474242, 0.965876284092, 0.983633456288, 0.994959220455, 1.000425266095,
+     0.999968834040, 1.000002676793, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1]])
+EXCESS = np.array([4.34029063e-4, 9.76566970e-4, 1.73612201e-3])
+TIER_HEIGHTS = np.array([height for height, _ in TIERS], np.int64)
+TIER_REACH = np.array([rows + 2 for _, rows in TIERS], np.int64)
+
+
+def tier(height: int) -> int:
+    """The row of :data:`TIERS` (and :data:`FACTORS`) a lat-long of ``height`` rows takes, or −1 (no rational
+    weights)."""
+    return next((t for t, (least, _) in enumerate(TIERS) if height >= least), -1)
 
 
 def reach(height: int) -> int:
     """How many rows at each pole of a lat-long of ``height`` rows have rational weights (0: none)."""
-    return REACH if height >= MIN_HEIGHT else 0
+    t = tier(height)
+    return int(TIER_REACH[t]) if t >= 0 else 0
