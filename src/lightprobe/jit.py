@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import functools
 import sys
+import threading
 
 # Work (element operations: pixels × per-pixel work) from which loading numba — ~1 s and ~130 MB for its import and
 # the first cached kernel, more when a kernel must compile — is repaid by its kernels, where a numpy formulation
@@ -15,6 +16,7 @@ import sys
 COMPILE_WORTH = 1 << 28
 
 prange = range  # replaced in each kernel's module by numba.prange when the first kernel there compiles
+_MAKING = threading.RLock()  # held while a kernel's dispatcher is made (see njit)
 
 # numba's array support imports scipy.linalg (its cython BLAS, ~26 MiB resident: 15 of heap, 11 of library pages —
 # a convert's peak on a 4k map is ~3.4× the map) only to learn whether np.dot and np.linalg may compile in nopython
@@ -76,18 +78,27 @@ def njit(**options):
     of a module compiles, every such function in its globals is swapped for its numba dispatcher, so numba can type
     the calls."""
     def decorate(fn):
-        dispatcher = None
+        dispatcher = making = None
 
         def compiled():
-            nonlocal dispatcher
+            nonlocal dispatcher, making
             if dispatcher is None:
-                numba = import_numba()
-                use_threads()
-                fn.__globals__["prange"] = numba.prange
-                dispatcher = numba.njit(**options)(fn)
-                for name, value in list(fn.__globals__.items()):
-                    if getattr(value, "lazy_dispatcher", None) is not None and value is not call:
-                        fn.__globals__[name] = value.lazy_dispatcher()
+                # Kernels first run on several threads at once (the resampler's bands): the dispatcher is published
+                # only once the helpers it calls are swapped in, or another thread would compile it against the
+                # plain Python helpers ("Untyped global name"). Other threads wait on the lock; the making thread
+                # takes it again while swapping, and a helper that names this function back gets ``making``.
+                with _MAKING:
+                    if dispatcher is None:
+                        if making is not None:
+                            return making
+                        numba = import_numba()
+                        use_threads()
+                        fn.__globals__["prange"] = numba.prange
+                        making = numba.njit(**options)(fn)
+                        for name, value in list(fn.__globals__.items()):
+                            if getattr(value, "lazy_dispatcher", None) is not None and value is not call:
+                                fn.__globals__[name] = value.lazy_dispatcher()
+                        dispatcher = making
             return dispatcher
 
         @functools.wraps(fn)
