@@ -13,7 +13,7 @@ from ..layouts import CUBE, Cross, Layout
 from .. import limits
 from ..limits import check_memory, check_pixels
 from ..progress import track
-from . import cube_symmetry, fused, polar, pole_rows
+from . import aligned_poles, cube_symmetry, fused, polar, pole_rows
 from .map import EnvMap, owned
 
 _CHUNK_SAMPLES = 1 << 18  # direction lookups per chunk of a resampling pass (bounds memory to ~100 MB)
@@ -182,6 +182,7 @@ class _Plan:
     height: int  # rows per face
     args: tuple  # the kernel's arguments before ``out, first``
     cube_rows: tuple | None = None  # lat-long → cube by symmetry: cube_symmetry.cube_rows_into's before ``out, …``
+    exact_rows: dict | None = None  # lat-long → lat-long on the same rows: the polar rows (aligned_poles)
 
     @property
     def lines_shape(self) -> tuple[int, int, int]:
@@ -194,11 +195,14 @@ class _Plan:
         threads = min(limits.threads(), max(1, len(out) // 8))
         if threads == 1:
             fused.resample_into(*self.args, out, first)
-            return
-        band = max(1, -(-len(out) // (4 * threads)))  # 4 bands a thread: the slow bands (poles) even out
-        starts = range(0, len(out), band)
-        with ThreadPoolExecutor(threads) as pool:
-            list(pool.map(lambda s: fused.resample_into(*self.args, out[s:s + band], first + s), starts))
+        else:
+            band = max(1, -(-len(out) // (4 * threads)))  # 4 bands a thread: the slow bands (poles) even out
+            starts = range(0, len(out), band)
+            with ThreadPoolExecutor(threads) as pool:
+                list(pool.map(lambda s: fused.resample_into(*self.args, out[s:s + band], first + s), starts))
+        for line, values in (self.exact_rows or {}).items():  # a lat-long target: one face, lines are rows
+            if first <= line < first + len(out):
+                out[line - first] = values
 
     def fill_rows(self, faces: np.ndarray, top: int, first: int, last: int, poles: bool = True) -> None:
         """Compute rows ``first`` … ``last − 1`` of ``faces`` (6, R, n, 3) — image rows ``top + first`` … of the
@@ -279,7 +283,10 @@ def _plan(source: EnvMap, target: Layout, size: int | None, rotation, samples: i
     by_symmetry = (symmetric and src_kind == fused.LATLONG and filled.name == "cube"
                    and cube_symmetry.applies(source.grid[-1], rotation))
     cube_rows = (img, *reduction, faces[1], k, cube_symmetry._kinds()) if by_symmetry else None
-    return _Plan(target, filled, grid, faces[1], args, cube_rows)
+    exact_rows = None
+    if reduce_poles and aligned_poles.applies(source.layout, filled, rotation):
+        exact_rows = aligned_poles.polar_rows(img[0], grid[-2:], k, rotation)
+    return _Plan(target, filled, grid, faces[1], args, cube_rows, exact_rows)
 
 
 def _fused_resample(source: EnvMap, target: Layout, grid: tuple[int, ...], k: int,
@@ -307,6 +314,7 @@ class Resampler:
 
         self.layout, self.grid, self.target = layout_named(layout), tuple(grid), layout_named(target)
         self.rotation, self.samples = rotation, samples
+        self._exact_k = 0
         target = self.target
         self.layout.check_grid(self.grid)
         source_layout = CUBE if isinstance(self.layout, Cross) else self.layout
@@ -336,6 +344,7 @@ class Resampler:
         check_memory(lines * w * (25 * 8 + 8) + min(lines, 64) * w * max_taps * 8,
                      f"footprint weights of {self.layout.name} → {self.target.name} size {self.size}", kernels=True)
         src_kind = fused.CODES[source_layout.name]
+        self._exact_k = k if aligned_poles.applies(source_layout, filled, self.rotation) else 0
         self._levels = None  # a latlong source's polar reduction levels, when it has any
         levels, _, row_offsets, caps = polar.no_reduction(source_grid[-2])
         if src_kind == fused.LATLONG:
@@ -399,6 +408,10 @@ class Resampler:
             list(pool.map(lambda s: fused.apply_taps(src, reduced, self.offsets, self.idx, self.wts, out[s:s + step], s),
                           range(0, pixels, step)))
         out = out.reshape(self._filled_grid + (3,))
+        if self._exact_k:  # a lat-long on the source's rows: its polar rows as resample computes them
+            for row, values in aligned_poles.polar_rows(np.asarray(data), out.shape[:2], self._exact_k,
+                                                        self.rotation).items():
+                out[row] = values
         if isinstance(self.target, Cross):
             out = self.target.from_cube(out)
         return EnvMap(owned(out), self.target)
