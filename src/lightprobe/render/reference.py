@@ -162,7 +162,9 @@ def scene_dict(mi, scene: Scene, folder: Path, spp: int, global_illumination: bo
     return d
 
 
-REFERENCE_BYTES_PER_PIXEL = 96  # Mitsuba's film (RGBA + weight, float32), its tensor and our float32 copy
+# Mitsuba's film (RGBA + weight, float32) and its tensor, our float64 sum of the passes and the pass being added
+# (48), and the float32 result (96 alone let a 4096² render under a ulimit -v start and run out of memory)
+REFERENCE_BYTES_PER_PIXEL = 144
 BYTES_PER_TRIANGLE = 200  # our arrays, the PLY written for Mitsuba, and Mitsuba's own copy with its BVH
 MITSUBA_ADDRESS_SPACE = 256 << 20  # address space Mitsuba maps after the check beyond its data (~50 MB measured)
 MITSUBA_BYTES = 128 << 20  # Mitsuba and Dr.Jit's LLVM backend loaded (~340 MB measured with the rest)
@@ -193,12 +195,18 @@ def _render_in_passes(mi, loaded, pixels: int, spp: int, seed: int) -> np.ndarra
     their sample counts; pass k uses seed + k. One pass (same seed) when the whole render fits in it."""
     per_pass = max(1, min(spp, SAMPLES_PER_PASS // max(pixels, 1)))
     total, done, k = None, 0, 0
-    while done < spp:
+    while done < spp:  # in place: two float64 images at most (a 4096² pass is 384 MiB each)
         n = min(per_pass, spp - done)
-        image = np.array(mi.render(loaded, spp=n, seed=seed + k), dtype=np.float64) * n
-        total = image if total is None else total + image
+        image = np.array(mi.render(loaded, spp=n, seed=seed + k), dtype=np.float64)
+        image *= n
+        if total is None:
+            total = image
+        else:
+            total += image
+        del image
         done, k = done + n, k + 1
-    return (total / spp).astype(np.float32)
+    total /= spp
+    return total.astype(np.float32)
 
 
 def reference_render(scene: Scene, spp: int = 64, global_illumination: bool = False, seed: int = 0,
