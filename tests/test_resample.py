@@ -5,6 +5,7 @@ are in test_envmap.py and test_layouts.py, unchanged."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -242,28 +243,79 @@ def test_a_pole_row_sun_keeps_its_energy_in_a_latlong_target(size, yaw):
     np.testing.assert_allclose(resample(src, LATLONG, size, rotation=turn).integral(), src.integral(), rtol=1e-3)
 
 
-def test_the_exact_polar_rows_are_the_midpoint_rows_in_the_limit():
-    """The rows computed apart agree with the kernel's own k×k midpoint rows as k grows (here k = 48 against the
-    exact θ integration at k = 48): the same reconstruction, integrated better — and a smooth map's polar rows
-    differ from the kernel's at its usual k by little."""
+def test_the_separable_rows_are_the_midpoint_rows_in_the_limit():
+    """Lat-long → lat-long on the same rows is two sparse products (:mod:`lightprobe.envmap.aligned_poles`): its
+    rows agree with the kernel's own k×k midpoint rows at k = 48 on a smooth map — the same reconstruction,
+    integrated exactly in θ rather than by midpoints."""
     from lightprobe.envmap import aligned_poles
     from lightprobe.envmap.resample import _fused_resample
 
     rng = np.random.default_rng(3)
     src = EnvMap(rng.gamma(2.0, 1.0, (64, 128, 3)).astype(np.float32), LATLONG)
     grid = LATLONG.grid_shape(32)
-    rows = aligned_poles.polar_rows(src.data, grid, 48, None)
-    midpoint = _fused_resample(src, LATLONG, grid, 48, None).data  # reduce_poles off: plain kernel rows
-    assert sorted(rows) == aligned_poles.polar_target_rows(64, 32)
-    for row, values in rows.items():
-        np.testing.assert_allclose(values, midpoint[row], rtol=2e-3)
+    rows = aligned_poles.Separable(src.grid, grid, 48, None).band(src.data, 0, 32)
+    midpoint = _fused_resample(src, LATLONG, grid, 48, None).data  # reduce_poles off: the kernel itself
+    np.testing.assert_allclose(rows, midpoint, rtol=2e-3)
+    assert not np.allclose(rows, midpoint, rtol=1e-6)  # not the same computation
 
 
-def test_the_exact_polar_rows_keep_a_uniform_map_exact():
+def test_the_separable_rows_keep_a_uniform_map_exact():
     from lightprobe.envmap import aligned_poles
 
-    rows = aligned_poles.polar_rows(np.full((96, 192, 3), 0.7, np.float32), (40, 80), 5, None)
-    assert len(rows) == 2 * 13 and all(np.all(v == np.float32(0.7)) for v in rows.values())
+    for grid, k, turn in (((40, 80), 5, None), ((96, 192), 2, TURN_ABOUT_UP)):
+        rows = aligned_poles.Separable((96, 192), grid, k, turn).band(np.full((96, 192, 3), 0.7, np.float32), 0,
+                                                                      grid[0])
+        assert np.all(rows == np.float32(0.7))
+
+
+TURN_ABOUT_UP = rotation_from_ypr(37, 0, 0)
+_RANDOM_SUNS = np.random.default_rng(11).normal(size=(12, 3))
+
+
+@pytest.mark.parametrize("size", [16, 32, 64])
+def test_a_sun_anywhere_keeps_its_energy_into_a_latlong(size):
+    """A one-pixel sun at twelve random directions of a 128-row lat-long, into lat-longs of 16–64 rows: within
+    0.2 %. (Integrating only the rows next to the poles exactly and the rest by midpoints lost or gained up to
+    0.6 % where a sun's spline straddled the seam between the two; the whole map is now computed one way.)"""
+    errors = []
+    for d in _RANDOM_SUNS:
+        src, _ = _sun_map(d)
+        errors.append(abs(resample(src, LATLONG, size).integral()[0] / src.integral()[0] - 1))
+    assert max(errors) < 2e-3, f"{100 * max(errors):.3f} %"
+
+
+def test_the_separable_conversion_serves_yawed_targets_only():
+    from lightprobe.envmap import aligned_poles
+
+    assert aligned_poles.applies(LATLONG, LATLONG, None) and aligned_poles.applies(LATLONG, LATLONG, TURN_ABOUT_UP)
+    assert not aligned_poles.applies(LATLONG, LATLONG, TURN) and not aligned_poles.applies(LATLONG, CUBE, None)
+    assert not aligned_poles.applies(LATLONG, LATLONG, rotation_from_ypr(0, 0, 180))  # the poles swapped
+
+
+@pytest.mark.xfail(strict=True, reason="cube, angular and mirror-ball sources: a one-pixel sun off by up to 1–4 % "
+                                       "(benchmarks/bench_energy.py)")
+@pytest.mark.parametrize("source, target", [("cube", "latlong"), ("cube", "angular"), ("angular", "latlong"),
+                                            ("sphere", "latlong")])
+def test_a_sun_anywhere_in_any_source_keeps_its_energy(source, target):
+    """The known remainder of issue 9's bar (strict: the day it passes, the mark must go). From a lat-long source
+    every conversion keeps a one-pixel sun within 0.2 % at the directions ``benchmarks/bench_energy.py`` draws
+    (bar two disc targets of 16 pixels: 0.37–0.47 %); from cube, angular and mirror-ball sources the same draw
+    finds suns off by up to 1–4 % into lat-long and disc targets (medians 0.01–0.5 %)."""
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from bench_energy import SOURCES, directions, near_rim, sun_map
+
+    from lightprobe.layouts import layout
+
+    src_layout, tgt_layout = layout(source), layout(target)
+    errors = []
+    for d in directions(40, 11):
+        if near_rim(src_layout, d) or near_rim(tgt_layout, d):
+            continue
+        src = sun_map(src_layout, SOURCES[source], d)
+        errors.append(abs(resample(src, tgt_layout, 32).integral()[0] / src.integral()[0] - 1))
+    assert max(errors) < 2e-3, f"{100 * max(errors):.3f} %"
 
 
 @pytest.mark.xfail(strict=True, reason="a pole-row sun from a source of fewer than 48 rows: +22 %")

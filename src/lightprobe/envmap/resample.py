@@ -182,7 +182,7 @@ class _Plan:
     height: int  # rows per face
     args: tuple  # the kernel's arguments before ``out, first``
     cube_rows: tuple | None = None  # lat-long → cube by symmetry: cube_symmetry.cube_rows_into's before ``out, …``
-    exact_rows: dict | None = None  # lat-long → lat-long on the same rows: the polar rows (aligned_poles)
+    separable: tuple | None = None  # lat-long → lat-long on the same rows: (aligned_poles.Separable, source data)
 
     @property
     def lines_shape(self) -> tuple[int, int, int]:
@@ -192,17 +192,18 @@ class _Plan:
     def fill(self, out: np.ndarray, first: int) -> None:
         """Compute lines ``first`` … ``first + len(out) − 1`` (face-major rows) into ``out``, in bands on
         :func:`lightprobe.limits.threads` threads (the kernel releases the GIL)."""
+        if self.separable is not None:  # a lat-long target: one face, lines are rows
+            matrices, data = self.separable
+            out[:] = matrices.band(data, first, first + len(out))
+            return
         threads = min(limits.threads(), max(1, len(out) // 8))
         if threads == 1:
             fused.resample_into(*self.args, out, first)
-        else:
-            band = max(1, -(-len(out) // (4 * threads)))  # 4 bands a thread: the slow bands (poles) even out
-            starts = range(0, len(out), band)
-            with ThreadPoolExecutor(threads) as pool:
-                list(pool.map(lambda s: fused.resample_into(*self.args, out[s:s + band], first + s), starts))
-        for line, values in (self.exact_rows or {}).items():  # a lat-long target: one face, lines are rows
-            if first <= line < first + len(out):
-                out[line - first] = values
+            return
+        band = max(1, -(-len(out) // (4 * threads)))  # 4 bands a thread: the slow bands (poles) even out
+        starts = range(0, len(out), band)
+        with ThreadPoolExecutor(threads) as pool:
+            list(pool.map(lambda s: fused.resample_into(*self.args, out[s:s + band], first + s), starts))
 
     def fill_rows(self, faces: np.ndarray, top: int, first: int, last: int, poles: bool = True) -> None:
         """Compute rows ``first`` … ``last − 1`` of ``faces`` (6, R, n, 3) — image rows ``top + first`` … of the
@@ -283,10 +284,10 @@ def _plan(source: EnvMap, target: Layout, size: int | None, rotation, samples: i
     by_symmetry = (symmetric and src_kind == fused.LATLONG and filled.name == "cube"
                    and cube_symmetry.applies(source.grid[-1], rotation))
     cube_rows = (img, *reduction, faces[1], k, cube_symmetry._kinds()) if by_symmetry else None
-    exact_rows = None
+    separable = None
     if reduce_poles and aligned_poles.applies(source.layout, filled, rotation):
-        exact_rows = aligned_poles.polar_rows(img[0], grid[-2:], k, rotation)
-    return _Plan(target, filled, grid, faces[1], args, cube_rows, exact_rows)
+        separable = (aligned_poles.Separable(source.grid, grid[-2:], k, rotation), source.data)
+    return _Plan(target, filled, grid, faces[1], args, cube_rows, separable)
 
 
 def _fused_resample(source: EnvMap, target: Layout, grid: tuple[int, ...], k: int,
@@ -314,7 +315,7 @@ class Resampler:
 
         self.layout, self.grid, self.target = layout_named(layout), tuple(grid), layout_named(target)
         self.rotation, self.samples = rotation, samples
-        self._exact_k = 0
+        self._separable = None  # a lat-long on the source's rows: aligned_poles' matrices instead of taps
         target = self.target
         self.layout.check_grid(self.grid)
         source_layout = CUBE if isinstance(self.layout, Cross) else self.layout
@@ -333,10 +334,15 @@ class Resampler:
 
     @property
     def nbytes(self) -> int:
+        if self._separable is not None:
+            return self._separable.nbytes
         return 0 if self.offsets is None else self.offsets.nbytes + self.idx.nbytes + self.wts.nbytes
 
     def _build(self, source_layout: Layout, source_grid, out_grid, k: int, steps: polar.Steps) -> None:
         filled = _face_layout(self.target)
+        if aligned_poles.applies(source_layout, filled, self.rotation):  # as resample does it
+            self._separable = aligned_poles.Separable(tuple(source_grid), tuple(out_grid[-2:]), k, self.rotation)
+            return
         grid = filled.grid_shape(self.target.size_of(out_grid))
         faces = grid if filled.faces > 1 else (1,) + grid
         lines, w = faces[0] * faces[1], faces[2]
@@ -344,7 +350,6 @@ class Resampler:
         check_memory(lines * w * (25 * 8 + 8) + min(lines, 64) * w * max_taps * 8,
                      f"footprint weights of {self.layout.name} → {self.target.name} size {self.size}", kernels=True)
         src_kind = fused.CODES[source_layout.name]
-        self._exact_k = k if aligned_poles.applies(source_layout, filled, self.rotation) else 0
         self._levels = None  # a latlong source's polar reduction levels, when it has any
         levels, _, row_offsets, caps = polar.no_reduction(source_grid[-2])
         if src_kind == fused.LATLONG:
@@ -393,6 +398,9 @@ class Resampler:
         if env.layout != self.layout or env.grid != self.grid:
             raise LayoutError(f"this Resampler converts {self.layout.name} maps of grid {self.grid}, "
                               f"not {env.layout.name} {env.grid}")
+        if self._separable is not None:
+            rows = self._separable.target_grid[0]
+            return EnvMap(owned(self._separable.band(np.asarray(env.data), 0, rows)), self.target)
         if self.offsets is None:
             return resample(env, self.target, self.size, rotation=self.rotation, samples=self.samples)
         data = self.layout.to_cube(env.data) if isinstance(self.layout, Cross) else env.data
@@ -408,10 +416,6 @@ class Resampler:
             list(pool.map(lambda s: fused.apply_taps(src, reduced, self.offsets, self.idx, self.wts, out[s:s + step], s),
                           range(0, pixels, step)))
         out = out.reshape(self._filled_grid + (3,))
-        if self._exact_k:  # a lat-long on the source's rows: its polar rows as resample computes them
-            for row, values in aligned_poles.polar_rows(np.asarray(data), out.shape[:2], self._exact_k,
-                                                        self.rotation).items():
-                out[row] = values
         if isinstance(self.target, Cross):
             out = self.target.from_cube(out)
         return EnvMap(owned(out), self.target)

@@ -1,0 +1,94 @@
+"""Energy of a one-pixel sun through every conversion: issue 9's accuracy bar (∫L dω within 0.2 %) measured on
+directions nobody chose, beside the ones the tests pin down.
+
+    python benchmarks/bench_energy.py [--suns 40] [--seed 11]
+
+For each source layout (a 128-row lat-long, 64² cube faces, 128² angular and mirror-ball maps) and each target
+layout at sizes 16, 32 and 64 (unturned), a sky of 0.05 with one pixel holding 10× the sky's power is converted at
+``--suns`` random directions plus eight within 3° of the poles; the table gives the worst and the median relative
+error of ∫L dω and how many exceed 0.2 %. Suns within 25° of a disc's rim direction (where one direction is a ring
+of pixels) are left out, in the source and in the target.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from common import require  # noqa: F401  (sets the environment first)
+
+import numpy as np
+
+from lightprobe.envmap import EnvMap, resample
+from lightprobe.layouts import layout
+
+SOURCES = {"latlong": 128, "cube": 64, "angular": 128, "sphere": 128}
+TARGETS = ("latlong", "cube", "angular", "sphere")
+SIZES = (16, 32, 64)
+RIM_COS = -0.9  # within ~25° of a disc's rim direction
+
+
+def rim_direction(lay) -> np.ndarray | None:
+    """The direction a disc layout smears over its rim (its camera's back), or None."""
+    if lay.name == "angular":
+        return np.array([0.0, 0.0, 1.0])
+    if lay.name == "sphere":
+        return lay.camera_axes @ np.array([0.0, 0.0, -1.0])
+    return None
+
+
+def near_rim(lay, d: np.ndarray) -> bool:
+    rim = rim_direction(lay)
+    return rim is not None and float(d @ rim) > -RIM_COS
+
+
+def sun_map(lay, size: int, d: np.ndarray) -> EnvMap:
+    grid = lay.grid_shape(size)
+    data = np.full(grid + (3,), 0.05, np.float32)
+    face, x, y = lay.pixel_coords(d[None], grid)
+    row = int(np.clip(np.rint(y[0]), 0, grid[-2] - 1))
+    col = int(np.clip(np.rint(x[0]), 0, grid[-1] - 1))
+    index = (int(face[0]), row, col) if len(grid) == 3 else (row, col)
+    one = np.zeros_like(data)
+    one[index] = 1.0
+    data[index] += 10 * 0.05 * 4 * np.pi / EnvMap(one, lay).integral()[0]
+    return EnvMap(data, lay)
+
+
+def directions(count: int, seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    random = rng.normal(size=(count, 3))
+    polar = np.radians(rng.uniform(0.0, 3.0, 8))
+    azimuth = rng.uniform(0.0, 2 * np.pi, 8)
+    sign = np.where(np.arange(8) % 2 == 0, 1.0, -1.0)
+    poles = np.stack([np.sin(polar) * np.sin(azimuth), sign * np.cos(polar), np.sin(polar) * np.cos(azimuth)], -1)
+    d = np.concatenate([random, poles])
+    return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--suns", type=int, default=40)
+    parser.add_argument("--seed", type=int, default=11)
+    args = parser.parse_args()
+    suns = directions(args.suns, args.seed)
+    print(f"one-pixel sun (10× the sky's power), {len(suns)} directions ({args.suns} random, 8 at the poles)")
+    print(f"  {'source':16s} {'target':8s} {'size':>4s} {'suns':>5s} {'worst':>8s} {'median':>8s}  over 0.2 %")
+    for name, size in SOURCES.items():
+        src_layout = layout(name)
+        for target in TARGETS:
+            tgt_layout = layout(target)
+            for out_size in SIZES:
+                errors = []
+                for d in suns:
+                    if near_rim(src_layout, d) or near_rim(tgt_layout, d):
+                        continue
+                    src = sun_map(src_layout, size, d)
+                    out = resample(src, tgt_layout, out_size)
+                    errors.append(abs(out.integral()[0] / src.integral()[0] - 1) * 100)
+                errors = np.array(errors)
+                print(f"  {name + ' ' + str(size):16s} {target:8s} {out_size:4d} {errors.size:5d} "
+                      f"{errors.max():7.3f}% {np.median(errors):7.3f}%  {(errors > 0.2).sum():3d}")
+
+
+if __name__ == "__main__":
+    main()
