@@ -234,7 +234,7 @@ def test_a_pole_row_sun_keeps_its_energy_in_coarse_flat_targets(target, size):
 @pytest.mark.parametrize("size, yaw", [(16, 0), (64, 0), (96, 0), (128, 0), (64, 37)])
 def test_a_pole_row_sun_keeps_its_energy_in_a_latlong_target(size, yaw):
     """A lat-long target on the source's rows (unturned, or turned about the vertical): its polar rows are
-    integrated exactly in θ (:mod:`lightprobe.envmap.aligned_poles`). The k midpoints in θ, where dω ∝ θ, gave a
+    integrated exactly in θ (:mod:`lightprobe.envmap.separable`). The k midpoints in θ, where dω ∝ θ, gave a
     sun wholly in the source's first row +1.5–1.9 %."""
     from lightprobe.frames import rotation_from_ypr
 
@@ -244,26 +244,26 @@ def test_a_pole_row_sun_keeps_its_energy_in_a_latlong_target(size, yaw):
 
 
 def test_the_separable_rows_are_the_midpoint_rows_in_the_limit():
-    """Lat-long → lat-long on the same rows is two sparse products (:mod:`lightprobe.envmap.aligned_poles`): its
+    """Lat-long → lat-long on the same rows is two sparse products (:mod:`lightprobe.envmap.separable`): its
     rows agree with the kernel's own k×k midpoint rows at k = 48 on a smooth map — the same reconstruction,
     integrated exactly in θ rather than by midpoints."""
-    from lightprobe.envmap import aligned_poles
+    from lightprobe.envmap import separable
     from lightprobe.envmap.resample import _fused_resample
 
     rng = np.random.default_rng(3)
     src = EnvMap(rng.gamma(2.0, 1.0, (64, 128, 3)).astype(np.float32), LATLONG)
     grid = LATLONG.grid_shape(32)
-    rows = aligned_poles.Separable(src.grid, grid, 48, None).band(src.data, 0, 32)
+    rows = separable.Separable(src.grid, grid, 48, None).band(src.data, 0, 32)
     midpoint = _fused_resample(src, LATLONG, grid, 48, None).data  # reduce_poles off: the kernel itself
     np.testing.assert_allclose(rows, midpoint, rtol=2e-3)
     assert not np.allclose(rows, midpoint, rtol=1e-6)  # not the same computation
 
 
 def test_the_separable_rows_keep_a_uniform_map_exact():
-    from lightprobe.envmap import aligned_poles
+    from lightprobe.envmap import separable
 
     for grid, k, turn in (((40, 80), 5, None), ((96, 192), 2, TURN_ABOUT_UP)):
-        rows = aligned_poles.Separable((96, 192), grid, k, turn).band(np.full((96, 192, 3), 0.7, np.float32), 0,
+        rows = separable.Separable((96, 192), grid, k, turn).band(np.full((96, 192, 3), 0.7, np.float32), 0,
                                                                       grid[0])
         assert np.all(rows == np.float32(0.7))
 
@@ -285,11 +285,11 @@ def test_a_sun_anywhere_keeps_its_energy_into_a_latlong(size):
 
 
 def test_the_separable_conversion_serves_yawed_targets_only():
-    from lightprobe.envmap import aligned_poles
+    from lightprobe.envmap import separable
 
-    assert aligned_poles.applies(LATLONG, LATLONG, None) and aligned_poles.applies(LATLONG, LATLONG, TURN_ABOUT_UP)
-    assert not aligned_poles.applies(LATLONG, LATLONG, TURN) and not aligned_poles.applies(LATLONG, CUBE, None)
-    assert not aligned_poles.applies(LATLONG, LATLONG, rotation_from_ypr(0, 0, 180))  # the poles swapped
+    assert separable.applies(LATLONG, LATLONG, None) and separable.applies(LATLONG, LATLONG, TURN_ABOUT_UP)
+    assert not separable.applies(LATLONG, LATLONG, TURN) and not separable.applies(LATLONG, CUBE, None)
+    assert not separable.applies(LATLONG, LATLONG, rotation_from_ypr(0, 0, 180))  # the poles swapped
 
 
 @pytest.mark.xfail(strict=True, reason="cube, angular and mirror-ball sources: a one-pixel sun off by up to 1–4 % "

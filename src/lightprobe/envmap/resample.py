@@ -13,7 +13,7 @@ from ..layouts import CUBE, Cross, Layout
 from .. import limits
 from ..limits import check_memory, check_pixels
 from ..progress import track
-from . import aligned_poles, cube_symmetry, fused, polar, pole_rows
+from . import cube_symmetry, fused, polar, pole_rows, separable
 from .map import EnvMap, owned
 
 _CHUNK_SAMPLES = 1 << 18  # direction lookups per chunk of a resampling pass (bounds memory to ~100 MB)
@@ -182,7 +182,7 @@ class _Plan:
     height: int  # rows per face
     args: tuple  # the kernel's arguments before ``out, first``
     cube_rows: tuple | None = None  # lat-long → cube by symmetry: cube_symmetry.cube_rows_into's before ``out, …``
-    separable: tuple | None = None  # lat-long → lat-long on the same rows: (aligned_poles.Separable, source data)
+    separable: tuple | None = None  # lat-long → lat-long on the same rows: (separable.Separable, source data)
 
     @property
     def lines_shape(self) -> tuple[int, int, int]:
@@ -284,10 +284,10 @@ def _plan(source: EnvMap, target: Layout, size: int | None, rotation, samples: i
     by_symmetry = (symmetric and src_kind == fused.LATLONG and filled.name == "cube"
                    and cube_symmetry.applies(source.grid[-1], rotation))
     cube_rows = (img, *reduction, faces[1], k, cube_symmetry._kinds()) if by_symmetry else None
-    separable = None
-    if reduce_poles and aligned_poles.applies(source.layout, filled, rotation):
-        separable = (aligned_poles.Separable(source.grid, grid[-2:], k, rotation), source.data)
-    return _Plan(target, filled, grid, faces[1], args, cube_rows, separable)
+    by_rows = None
+    if reduce_poles and separable.applies(source.layout, filled, rotation):
+        by_rows = (separable.Separable(source.grid, grid[-2:], k, rotation), source.data)
+    return _Plan(target, filled, grid, faces[1], args, cube_rows, by_rows)
 
 
 def _fused_resample(source: EnvMap, target: Layout, grid: tuple[int, ...], k: int,
@@ -315,7 +315,7 @@ class Resampler:
 
         self.layout, self.grid, self.target = layout_named(layout), tuple(grid), layout_named(target)
         self.rotation, self.samples = rotation, samples
-        self._separable = None  # a lat-long on the source's rows: aligned_poles' matrices instead of taps
+        self._separable = None  # a lat-long on the source's rows: separable' matrices instead of taps
         target = self.target
         self.layout.check_grid(self.grid)
         source_layout = CUBE if isinstance(self.layout, Cross) else self.layout
@@ -340,8 +340,8 @@ class Resampler:
 
     def _build(self, source_layout: Layout, source_grid, out_grid, k: int, steps: polar.Steps) -> None:
         filled = _face_layout(self.target)
-        if aligned_poles.applies(source_layout, filled, self.rotation):  # as resample does it
-            self._separable = aligned_poles.Separable(tuple(source_grid), tuple(out_grid[-2:]), k, self.rotation)
+        if separable.applies(source_layout, filled, self.rotation):  # as resample does it
+            self._separable = separable.Separable(tuple(source_grid), tuple(out_grid[-2:]), k, self.rotation)
             return
         grid = filled.grid_shape(self.target.size_of(out_grid))
         faces = grid if filled.faces > 1 else (1,) + grid
