@@ -115,7 +115,7 @@ class Separable:
         """Target rows ``first`` … ``last − 1`` (float32 (n, W_t, 3)) from the source ``data`` (H_s, W_s, 3)."""
         w_t = self.target_grid[1]
         out = np.empty((last - first, w_t, 3), np.float32)
-        step = max(1, STRIP_BYTES // (8 * 3 * w_t * 8))
+        step = max(1, STRIP_BYTES // (8 * 3 * w_t * 8))  # float64 RGB rows: ~8 a target row (its own, its sources)
         for top in range(first, last, step):
             bottom = min(top + step, last)
             value = np.zeros((bottom - top, w_t * 3))
