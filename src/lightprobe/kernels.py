@@ -13,7 +13,8 @@ import numpy as np
 
 from .jit import import_numba, use_threads
 
-njit, prange = import_numba().njit, import_numba().prange
+numba = import_numba()
+njit, prange = numba.njit, numba.prange
 use_threads()  # LIGHTPROBE_THREADS, as for the kernels compiled through lightprobe.jit
 
 

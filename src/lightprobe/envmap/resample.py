@@ -315,7 +315,7 @@ class Resampler:
 
         self.layout, self.grid, self.target = layout_named(layout), tuple(grid), layout_named(target)
         self.rotation, self.samples = rotation, samples
-        self._separable = None  # a lat-long on the source's rows: separable' matrices instead of taps
+        self._separable = None  # a lat-long on the source's rows: separable.Separable's matrices, not taps
         target = self.target
         self.layout.check_grid(self.grid)
         source_layout = CUBE if isinstance(self.layout, Cross) else self.layout
