@@ -149,3 +149,23 @@ def test_undetectable_aspect_is_a_clear_error(w, h):
 def test_grid_that_does_not_fit_is_refused(lay, grid):
     with pytest.raises(LayoutError):
         lay.check_grid(grid)
+
+
+@pytest.mark.parametrize("n", [4, 5, 16])
+def test_a_cubes_corner_padding_holds_each_corner_texel_once(n):
+    """Beyond each face corner (the vertex's missing fourth quadrant) the 2×2 padding holds the next face's corner
+    block, each of the 24 × 4 corner-block texels exactly once, on the face next round the vertex; the rest of the
+    border is the nearest texel, as before."""
+    from lightprobe.layouts import PAD, _padding_index
+
+    cube = LAYOUTS["cube"]
+    grid = cube.grid_shape(n)
+    border, (face, row, col) = _padding_index(cube, grid, PAD)
+    f, r, c = np.nonzero(border)
+    beyond_r, beyond_c = (r < PAD) | (r >= n + PAD), (c < PAD) | (c >= n + PAD)
+    diagonal = beyond_r & beyond_c
+    held = list(zip(face[diagonal], row[diagonal], col[diagonal]))
+    assert len(held) == 6 * 4 * PAD * PAD == len(set(held))
+    near = lambda x: (x < PAD) | (x >= n - PAD)  # noqa: E731
+    assert all(near(rr) and near(cc) for _, rr, cc in held)  # corner-block texels
+    assert all(ff != f0 for ff, f0 in zip(face[diagonal], f[diagonal]))  # from another face

@@ -19,6 +19,8 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from functools import lru_cache
 
+import math
+
 import numpy as np
 
 from .errors import LayoutError
@@ -96,6 +98,10 @@ class Layout(ABC):
         """True for pixels that cover part of the sphere."""
         return self.solid_angles(grid) > 0
 
+    def rim_direction(self) -> np.ndarray | None:
+        """The one direction a disc layout spreads over its rim (a ring of pixels), or None for other layouts."""
+        return None
+
     def pixel_coords(self, d: np.ndarray, grid: Grid) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Directions → (face, x, y) continuous pixel coordinates (pixel centre of column c is x = c)."""
         face, u, v = self.dir_to_uv(d)
@@ -161,8 +167,62 @@ def _padding_index(lay: Layout, grid: Grid, pad: int):
     f, uu, vv = lay.dir_to_uv(lay.uv_to_dir(face, u, v))
     row = np.clip(np.floor(vv * h), 0, h - 1).astype(np.int64)
     col = np.clip(np.floor(uu * w), 0, w - 1).astype(np.int64)
+    if lay.name == "cube" and min(h, w) >= 2 * pad:
+        _cube_corner_blocks(lay, h, pad, border, f, row, col)
     border.setflags(write=False)
     return border, (f, row, col)
+
+
+def _cube_corner_blocks(lay: "Layout", n: int, pad: int, border: np.ndarray, f, row, col) -> None:
+    """The pad × pad block of a cube face's padding beyond each of its corners, refilled in place: the face next
+    round the vertex, anticlockwise, gives its own corner block, each of its texels once.
+
+    Three faces meet at a cube's vertex, where a flat grid has four quadrants: the fourth, beyond a face's corner,
+    is nobody's. The nearest texel there is one of the two other faces' corner texels — sometimes the same one
+    for two slots, and for two faces — so a sun in a corner texel was read again through the others' diagonal
+    padding and came out up to 4.6 % too bright at any cube size (a sun in the corner texel of the next face less).
+    A texel i, j texels from the two edges at the vertex has m(i)·m(j) of its B-spline beyond both (m: the spline's
+    mass past an edge), the same as the diagonal slot i, j (or j, i) texels out: given once to one slot of one
+    face, each corner texel gets back the quadrant the vertex lacks, as the texels along an edge do."""
+    index = {key: i for i, key in enumerate(zip(*np.nonzero(border)))}
+    last = n - 1
+
+    def texel_direction(face: int, r: float, c: float) -> np.ndarray:  # (r, c) unpadded, may lie outside the face
+        return lay.uv_to_dir(np.array([face]), np.array([(c + 0.5) / n]), np.array([(r + 0.5) / n]))[0]
+
+    vertices: dict[tuple, list] = {}
+    for face in range(6):
+        for r, c in ((0, 0), (0, last), (last, 0), (last, last)):
+            corner = texel_direction(face, -0.5 if r == 0 else last + 0.5, -0.5 if c == 0 else last + 0.5)
+            vertices.setdefault(tuple(np.sign(np.round(corner, 9)).astype(int)), []).append((face, r, c))
+    for vertex, members in vertices.items():
+        axis = np.array(vertex, np.float64) / math.sqrt(3.0)
+        e1 = np.cross(axis, (0.0, 0.0, 1.0) if abs(axis[2]) < 0.9 else (1.0, 0.0, 0.0))
+        e2 = np.cross(axis, e1)
+        centres = [texel_direction(face, last / 2, last / 2) for face, _, _ in members]
+        order = np.argsort([math.atan2(d @ e2, d @ e1) for d in centres])
+        ring = [members[i] for i in order]
+        for i, (face, r, c) in enumerate(ring):
+            donor, dr, dc = ring[(i + 1) % 3]
+            out_r, out_c = (-1 if r == 0 else 1), (-1 if c == 0 else 1)  # this corner's outward steps
+            in_r, in_c = (1 if dr == 0 else -1), (1 if dc == 0 else -1)  # the donor's inward steps
+            def slot(a: int, b: int) -> tuple[int, int]:  # a texels out in columns, b in rows
+                return r + out_r * (b + 1), c + out_c * (a + 1)
+
+            def texel(i: int, j: int) -> tuple[int, int]:  # i texels in in rows, j in columns
+                return dr + in_r * i, dc + in_c * j
+
+            def fit(pairs) -> float:
+                return sum(float(texel_direction(donor, *texel(*t)) @ texel_direction(face, *slot(*q)))
+                           for q, t in pairs)
+
+            for a in range(pad):
+                for b in range(a, pad):  # slots (a, b) and (b, a) take texels (a, b) and (b, a), as fits best
+                    straight, crossed = [((a, b), (b, a)), ((b, a), (a, b))], [((a, b), (a, b)), ((b, a), (b, a))]
+                    for q, t in max(straight, crossed, key=fit):
+                        pr, pc = slot(*q)
+                        j = index[(face, pr + pad, pc + pad)]
+                        f[j], (row[j], col[j]) = donor, texel(*t)
 
 
 # ============================================================================================================ latlong
@@ -316,6 +376,9 @@ class Angular(_DiscLayout):
 
     name = "angular"
 
+    def rim_direction(self):
+        return np.array([0.0, 0.0, 1.0])
+
     def uv_to_dir(self, face, u, v):
         a, b = self._clamped_ab(u, v)
         r = np.hypot(a, b)
@@ -358,6 +421,9 @@ class Sphere(_DiscLayout):
 
     def __hash__(self):
         return hash((self.name, self.camera_axes.tobytes()))
+
+    def rim_direction(self):
+        return self.camera_axes @ np.array([0.0, 0.0, -1.0])
 
     def uv_to_dir(self, face, u, v):
         x, y = self._clamped_ab(u, v)
