@@ -4,40 +4,38 @@ directions nobody chose, beside the ones the tests pin down.
     python benchmarks/bench_energy.py [--suns 40] [--seed 11]
 
 For each source layout (a 128-row lat-long, 64² cube faces, 128² angular and mirror-ball maps) and each target
-layout at sizes 16, 32 and 64 (unturned), a sky of 0.05 with one pixel holding 10× the sky's power is converted at
-``--suns`` random directions plus eight within 3° of the poles; the table gives the worst and the median relative
-error of ∫L dω and how many exceed 0.2 %. Suns within 25° of a disc's rim direction (where one direction is a ring
-of pixels) are left out, in the source and in the target.
+layout at sizes 16, 32 and 64 (unturned), two tables:
+- sampled suns: a sky of 0.05 with one pixel holding 10× the sky's power is converted at ``--suns`` random
+  directions plus eight within 3° of the poles; the worst and the median relative error of the map's ∫L dω and
+  how many exceed 0.2 %;
+- every pixel: the gain of a sun in each source pixel, relative to the sun's own ∫L dω, for all pixels at once —
+  exact, from the conversion's weights (:meth:`lightprobe.envmap.Resampler.energy_gains`). Random suns miss the
+  few pixels where a conversion goes wrong (a cube's edges, the rim side of a disc); this table does not.
+Suns within 25° of a disc's rim direction (where one direction is a ring of pixels) are left out, in the source and
+in the target.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 
 from common import require  # noqa: F401  (sets the environment first)
 
 import numpy as np
 
-from lightprobe.envmap import EnvMap, resample
+from lightprobe.envmap import EnvMap, Resampler, resample
 from lightprobe.layouts import layout
 
 SOURCES = {"latlong": 128, "cube": 64, "angular": 128, "sphere": 128}
 TARGETS = ("latlong", "cube", "angular", "sphere")
 SIZES = (16, 32, 64)
-RIM_COS = -0.9  # within ~25° of a disc's rim direction
-
-
-def rim_direction(lay) -> np.ndarray | None:
-    """The direction a disc layout smears over its rim (its camera's back), or None."""
-    if lay.name == "angular":
-        return np.array([0.0, 0.0, 1.0])
-    if lay.name == "sphere":
-        return lay.camera_axes @ np.array([0.0, 0.0, -1.0])
-    return None
+RIM_MARGIN = 25.0  # degrees from a disc's rim direction left out
+RIM_COS = -math.cos(math.radians(RIM_MARGIN))
 
 
 def near_rim(lay, d: np.ndarray) -> bool:
-    rim = rim_direction(lay)
+    rim = lay.rim_direction()
     return rim is not None and float(d @ rim) > -RIM_COS
 
 
@@ -88,6 +86,22 @@ def main() -> None:
                 errors = np.array(errors)
                 print(f"  {name + ' ' + str(size):16s} {target:8s} {out_size:4d} {errors.size:5d} "
                       f"{errors.max():7.3f}% {np.median(errors):7.3f}%  {(errors > 0.2).sum():3d}")
+    every_pixel()
+
+
+def every_pixel() -> None:
+    print("\nevery source pixel as the sun (exact, from the conversion's weights; gain relative to the sun's own ∫L dω)")
+    print(f"  {'source':16s} {'target':8s} {'size':>4s} {'pixels':>6s} {'worst':>8s} {'99.9th':>8s} {'median':>8s}"
+          "  over 0.2 %")
+    for name, size in SOURCES.items():
+        src_layout = layout(name)
+        grid = src_layout.grid_shape(size)
+        for target in TARGETS:
+            for out_size in SIZES:
+                gains = Resampler(src_layout, grid, layout(target), out_size).energy_gains(rim_margin=RIM_MARGIN)
+                gains = np.abs(gains[np.isfinite(gains)]) * 100
+                print(f"  {name + ' ' + str(size):16s} {target:8s} {out_size:4d} {gains.size:6d} {gains.max():7.3f}% "
+                      f"{np.percentile(gains, 99.9):7.3f}% {np.median(gains):7.3f}%  {(gains > 0.2).mean() * 100:5.1f} %")
 
 
 if __name__ == "__main__":

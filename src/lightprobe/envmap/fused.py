@@ -528,22 +528,88 @@ def _lookup(src_kind, src, valid, levels, reduced, row_offsets, face, px, py, wx
         _lookup_padded(src, valid, face, px, py, wx, wy, acc)
 
 
+ADAPTIVE_SPACING = 0.5  # source pixels between neighbouring lookups, at most, where the rate adapts (polar.MAX_SPACING)
+
+
 @njit(cache=True, inline="always", error_model="numpy")
-def _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, k, rotation, src_kind, src_axes, src_h, src_w,
+def _source_xy(tgt_kind, tgt_axes, face, u, v, rotation, src_kind, src_axes, src_h, src_w):  # pragma: no cover
+    """The source position (face, column, row) of target coordinates (u, v)."""
+    x, y, z, _ = target_direction(tgt_kind, tgt_axes, face, u, v)
+    rx = x * rotation[0, 0] + y * rotation[1, 0] + z * rotation[2, 0]  # d @ R
+    ry = x * rotation[0, 1] + y * rotation[1, 1] + z * rotation[2, 1]
+    rz = x * rotation[0, 2] + y * rotation[1, 2] + z * rotation[2, 2]
+    return source_position(src_kind, src_axes, rx, ry, rz, src_h, src_w)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _source_step(tgt_kind, tgt_axes, face, u0, v0, u1, v1, rotation, src_kind, src_axes, src_h,
+                 src_w):  # pragma: no cover - compiled
+    """How far apart, in source pixels, the source positions of target points (u0, v0) and (u1, v1) land. On a
+    cube the second is placed on the first one's face plane, extended past its edge if need be (a step across an
+    edge is still a step). A lat-long's columns count at their width, sin θ of a column: nearer a pole the polar
+    reductions (:mod:`lightprobe.envmap.polar`) serve, not more lookups."""
+    f0, x0, y0 = _source_xy(tgt_kind, tgt_axes, face, u0, v0, rotation, src_kind, src_axes, src_h, src_w)
+    f1, x1, y1 = _source_xy(tgt_kind, tgt_axes, face, u1, v1, rotation, src_kind, src_axes, src_h, src_w)
+    if f0 != f1:
+        x, y, z, _ = target_direction(tgt_kind, tgt_axes, face, u1, v1)
+        m = FACE_MATRICES[f0]
+        rx = x * rotation[0, 0] + y * rotation[1, 0] + z * rotation[2, 0]  # d @ R
+        ry = x * rotation[0, 1] + y * rotation[1, 1] + z * rotation[2, 1]
+        rz = x * rotation[0, 2] + y * rotation[1, 2] + z * rotation[2, 2]
+        lz = m[0, 2] * rx + m[1, 2] * ry + m[2, 2] * rz
+        if lz <= 0.0:
+            return 0.0
+        x1 = ((m[0, 0] * rx + m[1, 0] * ry + m[2, 0] * rz) / lz + 1.0) / 2.0 * src_w - 0.5
+        y1 = ((m[0, 1] * rx + m[1, 1] * ry + m[2, 1] * rz) / lz + 1.0) / 2.0 * src_h - 0.5
+    dx, dy = abs(x1 - x0), abs(y1 - y0)
+    if src_kind == LATLONG:
+        dx = min(dx, src_w - dx) * math.sin(math.pi * min(max((y0 + y1 + 1.0) / (2.0 * src_h), 0.0), 1.0))
+    return math.hypot(dx, dy)
+
+
+@njit(cache=True, error_model="numpy")  # not inlined: four more copies of the layouts' formulas tripled the compile
+def _rates(tgt_kind, tgt_axes, face, row, col, h, w, k, k_max, rotation, src_kind, src_axes, src_h,
+           src_w):  # pragma: no cover - compiled
+    """(ku, kv): one target pixel's subsamples across and down — k each, raised up to ``k_max`` until
+    neighbouring lookups land at most :data:`ADAPTIVE_SPACING` source pixels apart. The steps are measured over
+    the pixel's middle half (it stays inside its face and its disc). Where a disc's rim stretches one direction
+    over a ring, a pixel's footprint in the other layout is many pixels long one way, and a cube's corner texels
+    are a fifth of its centre's: with one rate for the whole map, a sun in such a pixel was hit or missed — ±15 %
+    from an angular map into a lat-long, 74 % from a mirror ball into an angular map (pixels 90–155° from the
+    camera's axis), 7 % from a cube's corner texel into a lat-long (``Resampler.energy_gains``, every pixel).
+    Where the rate changes between neighbouring pixels the midpoint rule's spacing does too, and a sun there is
+    off by up to ~1 % (``benchmarks/bench_energy.py``)."""
+    uc, vc = (col + 0.5) / w, (row + 0.5) / h
+    across = 2.0 * _source_step(tgt_kind, tgt_axes, face, (col + 0.25) / w, vc, (col + 0.75) / w, vc, rotation,
+                                src_kind, src_axes, src_h, src_w)
+    down = 2.0 * _source_step(tgt_kind, tgt_axes, face, uc, (row + 0.25) / h, uc, (row + 0.75) / h, rotation,
+                              src_kind, src_axes, src_h, src_w)
+    ku = min(max(k, int(math.ceil(across / ADAPTIVE_SPACING - 1e-9))), k_max)
+    kv = min(max(k, int(math.ceil(down / ADAPTIVE_SPACING - 1e-9))), k_max)
+    return ku, kv
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, k, k_max, rotation, src_kind, src_axes, src_h, src_w,
                 pfs, pxs, pys, pws):  # pragma: no cover - compiled
-    """One target pixel's k×k subsamples: their source positions (pfs, pxs, pys) and weights ``dω/(du dv)``
-    (pws), those off a disc left out; returns (count, Σ weights). A disc's rim pixel with every subsample off the
-    disc gets its centre's (rim) direction, weight 1."""
+    """One target pixel's subsamples — k×k, or with ``k_max`` > k as many as :func:`_rates` asks, up to
+    k_max × k_max: their source positions (pfs, pxs, pys) and weights ``dω/(du dv)`` (pws), those off a disc left
+    out; returns (count, Σ weights). A disc's rim pixel with every subsample off the disc gets its centre's (rim)
+    direction, weight 1."""
+    ku, kv = k, k
+    if k_max > k:
+        ku, kv = _rates(tgt_kind, tgt_axes, face, row, col, h, w, k, k_max, rotation, src_kind, src_axes, src_h,
+                        src_w)
     n, wsum = 0, 0.0
-    for i in range(k * k + 1):
-        if i < k * k:
-            u, v = (col + (i % k + 0.5) / k) / w, (row + (i // k + 0.5) / k) / h
+    for i in range(ku * kv + 1):
+        if i < ku * kv:
+            u, v = (col + (i % ku + 0.5) / ku) / w, (row + (i // ku + 0.5) / kv) / h
         elif n == 0:
             u, v = (col + 0.5) / w, (row + 0.5) / h
         else:
             break
         x, y, z, weight = target_direction(tgt_kind, tgt_axes, face, u, v)
-        if i == k * k:
+        if i == ku * kv:
             weight = 1.0
         if weight <= 0.0:
             continue
@@ -559,14 +625,15 @@ def _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, k, rotation, src_kind,
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})
 def resample_into(src_kind, src, valid, levels, reduced, row_offsets, caps, src_axes, src_h, src_w, tgt_kind,
-                  tgt_axes, tgt_h, tgt_valid, all_valid, k, rotation, out, first):  # pragma: no cover - compiled
+                  tgt_axes, tgt_h, tgt_valid, all_valid, k, k_max, rotation, out, first):  # pragma: no cover - compiled
     """Fill ``out`` (n, W, 3) float32 with the target's lines ``first`` to ``first + n − 1`` (a line is one row of
     one face, face-major: line = face·H + row, H = ``tgt_h``), from ``src``: unpadded (1, H, W, 3) for a latlong
     source, else the padded (F, H+4, W+4, 3) image with its ``valid`` taps. A latlong source's polar rows may be
     read from their azimuthal reductions (``levels``, ``reduced``, ``row_offsets``, ``caps``: see
     :func:`_lookup_latlong` and :mod:`lightprobe.envmap.polar`). Unless ``all_valid``, ``tgt_valid``
     (F, H, W) uint8 says which target pixels cover the sphere (the rest are 0). ``rotation`` R: the target at d
-    shows the source at Rᵀd. Lines are independent, so a caller can fill a map in bands or stream it in strips.
+    shows the source at Rᵀd. k × k subsamples a pixel, or up to ``k_max`` × ``k_max`` where the pixel's footprint
+    is long (:func:`_rates`). Lines are independent, so a caller can fill a map in bands or stream it in strips.
 
     Serial and without the GIL: the caller runs bands of lines on threads. (numba's ``parallel=True`` took 25 s
     to compile this kernel the first time, against 9 s serial, for the same speed per core.)"""
@@ -575,28 +642,29 @@ def resample_into(src_kind, src, valid, levels, reduced, row_offsets, caps, src_
     for line in range(first, last):
         face, row = line // h, line % h
         wx, wy, acc, value = np.empty(4), np.empty(4), np.empty(3), np.empty(3)
-        pfs, pxs, pys, pws = (np.empty(k * k + 1, np.int64), np.empty(k * k + 1), np.empty(k * k + 1),
-                              np.empty(k * k + 1))
-        tile, scratch = np.empty((TILE, TILE)), _polar_scratch(k)
+        m = k_max * k_max + 1
+        pfs, pxs, pys, pws = np.empty(m, np.int64), np.empty(m), np.empty(m), np.empty(m)
+        tile, scratch = np.empty((TILE, TILE)), _polar_scratch(k_max)
         for col in range(w):
             if not all_valid and tgt_valid[face, row, col] == 0:
                 for c in range(3):
                     out[line - first, col, c] = 0.0
                 continue
             _pixel(src_kind, src, valid, levels, reduced, row_offsets, caps, src_axes, src_h, src_w, tgt_kind,
-                   tgt_axes, face, row, col, h, w, k, rotation, pfs, pxs, pys, pws, wx, wy, value, tile, scratch, acc)
+                   tgt_axes, face, row, col, h, w, k, k_max, rotation, pfs, pxs, pys, pws, wx, wy, value, tile,
+                   scratch, acc)
             for c in range(3):
                 out[line - first, col, c] = acc[c]
 
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _pixel(src_kind, src, valid, levels, reduced, row_offsets, caps, src_axes, src_h, src_w, tgt_kind, tgt_axes,
-           face, row, col, h, w, k, rotation, pfs, pxs, pys, pws, wx, wy, value, tile, scratch,
+           face, row, col, h, w, k, k_max, rotation, pfs, pxs, pys, pws, wx, wy, value, tile, scratch,
            acc):  # pragma: no cover - compiled
     """``acc`` = the value of target pixel (face, row, col) of an h × w face (:func:`resample_into`'s arguments;
     the rest is scratch)."""
-    n, wsum = _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, k, rotation, src_kind, src_axes, src_h, src_w,
-                          pfs, pxs, pys, pws)
+    n, wsum = _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, k, k_max, rotation, src_kind, src_axes, src_h,
+                          src_w, pfs, pxs, pys, pws)
     acc[0], acc[1], acc[2] = 0.0, 0.0, 0.0
     tiled = src_kind == LATLONG or src_kind == CUBE  # sources whose taps are all valid (no renormalisation)
     if not (tiled and _same_face(pfs, n)
@@ -615,9 +683,9 @@ def _pixel(src_kind, src, valid, levels, reduced, row_offsets, caps, src_axes, s
 def pixel_into(src_kind, src, valid, levels, reduced, row_offsets, caps, src_axes, src_h, src_w, tgt_kind, tgt_axes,
                face, row, col, h, w, k, rotation, pfs, pxs, pys, pws, wx, wy, value, tile, scratch,
                acc):  # pragma: no cover - compiled
-    """:func:`_pixel` compiled apart, for kernels that need the general path for a rare pixel."""
+    """:func:`_pixel` compiled apart at a fixed rate k, for kernels that need the general path for a rare pixel."""
     _pixel(src_kind, src, valid, levels, reduced, row_offsets, caps, src_axes, src_h, src_w, tgt_kind, tgt_axes,
-           face, row, col, h, w, k, rotation, pfs, pxs, pys, pws, wx, wy, value, tile, scratch, acc)
+           face, row, col, h, w, k, k, rotation, pfs, pxs, pys, pws, wx, wy, value, tile, scratch, acc)
 
 
 # ---- cached footprint weights ---------------------------------------------------------------------------------------
@@ -671,7 +739,7 @@ def _polar_taps(levels, row_offsets, h, w, pxs, pys, pws, n, scale, scratch, til
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})
 def footprint_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, caps, src_axes, src_h, src_w, tgt_kind,
-                   tgt_axes, tgt_h, tgt_w, tgt_valid, all_valid, k, rotation, first, idx, wts,
+                   tgt_axes, tgt_h, tgt_w, tgt_valid, all_valid, k, k_max, rotation, first, idx, wts,
                    counts):  # pragma: no cover - compiled
     """The taps of target lines ``first`` … (one row of ``idx``/``wts``, (n_pixels, max_taps), per target pixel of
     the lines, row-major): source pixel indices (flat over the unpadded source grid) and weights whose sum over a
@@ -684,9 +752,9 @@ def footprint_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, c
     h, w = tgt_h, tgt_w
     n_lines = counts.shape[0] // w
     tiled = src_kind == LATLONG or src_kind == CUBE
-    pfs, pxs, pys, pws = (np.empty(k * k + 1, np.int64), np.empty(k * k + 1), np.empty(k * k + 1),
-                          np.empty(k * k + 1))
-    tile, scratch = np.empty((TILE, TILE)), _polar_scratch(k)
+    m = k_max * k_max + 1
+    pfs, pxs, pys, pws = np.empty(m, np.int64), np.empty(m), np.empty(m), np.empty(m)
+    tile, scratch = np.empty((TILE, TILE)), _polar_scratch(k_max)
     wx, wy = np.empty(4), np.empty(4)
     for line in range(first, first + n_lines):
         face, row = line // h, line % h
@@ -695,60 +763,76 @@ def footprint_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, c
             counts[p] = 0
             if not all_valid and tgt_valid[face, row, col] == 0:
                 continue
-            n, wsum = _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, k, rotation, src_kind, src_axes,
+            n, wsum = _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, k, k_max, rotation, src_kind, src_axes,
                                   src_h, src_w, pfs, pxs, pys, pws)
-            t = 0
+            scale = 1.0 / wsum
+            t = -1
             if tiled and _same_face(pfs, n):
-                pad = 0 if src_kind == LATLONG else 2
-                c0, r0, tw, th = _tile_bounds(pxs, pys, n, pad)
-                ok = tw <= TILE and th <= TILE
-                if ok and not pad and (r0 < caps[0] or r0 + th > src_h - caps[1]):
-                    ok = False
-                    t = _polar_taps(levels, row_offsets, src_h, src_w, pxs, pys, pws, n, 1.0 / wsum, scratch, tile,
-                                    idx[p], wts[p])
-                    if t > 0:
-                        counts[p] = t
-                        continue
-                if ok and pad:
-                    ok = r0 >= 0 and r0 + th <= src_shape[1] and c0 >= 0 and c0 + tw <= src_shape[2]
-                if ok:
-                    _sum_into_tile(tile, pxs, pys, pws, n, 1.0 / wsum, c0, r0, tw, th, pad)
-                    for ty in range(th):
-                        for tx in range(tw):
-                            if tile[ty, tx] != 0.0:
-                                if pad:
-                                    idx[p, t] = index_map[pfs[0], r0 + ty, c0 + tx]
-                                else:
-                                    idx[p, t] = _latlong_index(r0 + ty, c0 + tx, src_h, src_w)
-                                wts[p, t] = tile[ty, tx]
-                                t += 1
-                    counts[p] = t
-                    continue
-            for s in range(n):  # subsample by subsample, as _lookup does
-                fx, fy = math.floor(pxs[s]), math.floor(pys[s])
-                _bspline_weights(pxs[s] - fx, wx)
-                _bspline_weights(pys[s] - fy, wy)
-                q = pws[s] / wsum
-                if src_kind == LATLONG:
-                    wy[0], wy[1], wy[2], wy[3] = _pole_rows4(int(fy) - 1, src_h, wy[0], wy[1], wy[2], wy[3])
-                    t = _latlong_taps(levels, row_offsets, src_h, src_w, pxs[s], int(fy) - 1, wy, q, wx, idx[p],
-                                      wts[p], t)
-                else:
-                    x0 = min(max(int(fx) + 1, 0), src_shape[2] - 4)  # padded: + 2, − 1 for the first tap
-                    y0 = min(max(int(fy) + 1, 0), src_shape[1] - 4)
-                    f = pfs[s]
-                    total = 0.0
-                    for dy in range(4):
-                        for dx in range(4):
-                            total += wy[dy] * wx[dx] * (1.0 if valid.shape[1] == 1 else valid[f, y0 + dy, x0 + dx])
-                    for dy in range(4):
-                        for dx in range(4):
-                            kk = wy[dy] * wx[dx] * (1.0 if valid.shape[1] == 1 else valid[f, y0 + dy, x0 + dx])
-                            if kk > 0.0:
-                                idx[p, t] = index_map[f, y0 + dy, x0 + dx]
-                                wts[p, t] = q * kk / total
-                                t += 1
+                t = _tile_taps(src_kind, src_shape, index_map, levels, row_offsets, caps, src_h, src_w, pfs, pxs,
+                               pys, pws, n, scale, scratch, tile, idx[p], wts[p])
+            if t < 0:
+                t = 0
+                for s in range(n):  # subsample by subsample, as _lookup does
+                    t = _lookup_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, src_h, src_w,
+                                     pfs[s], pxs[s], pys[s], pws[s] * scale, wx, wy, idx[p], wts[p], t)
             counts[p] = t
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _tile_taps(src_kind, src_shape, index_map, levels, row_offsets, caps, src_h, src_w, pfs, pxs, pys, pws, n, scale,
+               scratch, tile, idx, wts):  # pragma: no cover - compiled
+    """One pixel's subsamples on one face as merged footprint taps (:func:`_footprint`'s tile, or the per-row
+    tile near a latlong's poles), weights times ``scale``; returns how many, or −1 where the footprint does not
+    fit a tile (the caller lists the subsamples one by one)."""
+    pad = 0 if src_kind == LATLONG else 2
+    c0, r0, tw, th = _tile_bounds(pxs, pys, n, pad)
+    ok = tw <= TILE and th <= TILE
+    if ok and not pad and (r0 < caps[0] or r0 + th > src_h - caps[1]):
+        t = _polar_taps(levels, row_offsets, src_h, src_w, pxs, pys, pws, n, scale, scratch, tile, idx, wts)
+        return t if t > 0 else -1
+    if ok and pad:
+        ok = r0 >= 0 and r0 + th <= src_shape[1] and c0 >= 0 and c0 + tw <= src_shape[2]
+    if not ok:
+        return -1
+    _sum_into_tile(tile, pxs, pys, pws, n, scale, c0, r0, tw, th, pad)
+    t = 0
+    for ty in range(th):
+        for tx in range(tw):
+            if tile[ty, tx] != 0.0:
+                if pad:
+                    idx[t] = index_map[pfs[0], r0 + ty, c0 + tx]
+                else:
+                    idx[t] = _latlong_index(r0 + ty, c0 + tx, src_h, src_w)
+                wts[t] = tile[ty, tx]
+                t += 1
+    return t
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _lookup_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, src_h, src_w, f, x, y, q, wx, wy, idx,
+                 wts, t):  # pragma: no cover - compiled
+    """The taps of one B-spline lookup at source position (f, x, y), weight ``q`` in all (renormalised over a
+    disc's valid taps, as :func:`_lookup_padded` reads them), stored from ``t``; returns the next free slot."""
+    fx, fy = math.floor(x), math.floor(y)
+    _bspline_weights(x - fx, wx)
+    _bspline_weights(y - fy, wy)
+    if src_kind == LATLONG:
+        wy[0], wy[1], wy[2], wy[3] = _pole_rows4(int(fy) - 1, src_h, wy[0], wy[1], wy[2], wy[3])
+        return _latlong_taps(levels, row_offsets, src_h, src_w, x, int(fy) - 1, wy, q, wx, idx, wts, t)
+    x0 = min(max(int(fx) + 1, 0), src_shape[2] - 4)  # padded: + 2, − 1 for the first tap
+    y0 = min(max(int(fy) + 1, 0), src_shape[1] - 4)
+    total = 0.0
+    for dy in range(4):
+        for dx in range(4):
+            total += wy[dy] * wx[dx] * (1.0 if valid.shape[1] == 1 else valid[f, y0 + dy, x0 + dx])
+    for dy in range(4):
+        for dx in range(4):
+            kk = wy[dy] * wx[dx] * (1.0 if valid.shape[1] == 1 else valid[f, y0 + dy, x0 + dx])
+            if kk > 0.0:
+                idx[t] = index_map[f, y0 + dy, x0 + dx]
+                wts[t] = q * kk / total
+                t += 1
+    return t
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})

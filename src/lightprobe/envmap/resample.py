@@ -14,7 +14,7 @@ from .. import limits
 from ..limits import check_memory, check_pixels
 from ..progress import track
 from . import cube_symmetry, fused, polar, pole_rows, separable
-from .map import EnvMap, owned
+from .map import EnvMap, owned, pixel_directions, pixel_solid_angles
 
 _CHUNK_SAMPLES = 1 << 18  # direction lookups per chunk of a resampling pass (bounds memory to ~100 MB)
 MAX_FOOTPRINT_RATIO = 16  # source pixels per target pixel above which the source is box-reduced first
@@ -162,9 +162,24 @@ def supersampling(source: Layout, source_grid: tuple[int, ...], target: Layout, 
         # Measured only from a lat-long into a lat-long or cube (a turned lat-long's equator lands further apart than
         # the ratio says). A disc's rim, as source or target, is one direction spread over a ring — the steps there
         # grow without bound and the measured rate would be the cap — and a cube's corner texels are a fifth of its
-        # centre's: from a cube the rate would double for its corners alone. The ratio serves those, as it did.
+        # centre's: from a cube the rate would double for its corners alone. The ratio gives those their base rate;
+        # each pixel raises its own where its footprint is long (adaptive_rate).
         return auto_samples(ratio), steps
     return polar.samples_needed(steps, auto_samples(ratio)), steps
+
+
+def adaptive_rate(source: Layout, target: Layout, k: int) -> int:
+    """The most subsamples a side (k_max) a pixel may take where its footprint is long, when the rate is automatic:
+    where either layout is a disc, whose rim spreads one direction over a ring, or the source is a cube, whose
+    corner texels are a fifth of its centre's, each pixel takes its own rate between k and
+    :data:`lightprobe.envmap.polar.MAX_SAMPLES` (:func:`lightprobe.envmap.fused._rates`). Elsewhere k: a
+    lat-long source's polar rows are shortened by their reductions."""
+    if source.name in DISCS or target.name in DISCS or source.name == "cube":
+        return max(k, polar.MAX_SAMPLES)
+    return k
+
+
+DISCS = ("angular", "sphere")
 
 
 def _face_layout(target: Layout) -> Layout:
@@ -279,8 +294,9 @@ def _plan(source: EnvMap, target: Layout, size: int | None, rotation, samples: i
     all_valid = filled.valid_fraction == 1.0  # latlong, cube: no per-pixel mask
     tgt_valid = (np.ones((1, 1, 1), dtype=np.uint8) if all_valid
                  else filled.valid_mask(grid).reshape(faces).astype(np.uint8))
+    k_max = adaptive_rate(source.layout, filled, k) if samples is None else k
     args = (src_kind, img, valid, *reduction, _axes(source.layout), source.grid[-2], source.grid[-1],
-            fused.CODES[filled.name], _axes(filled), faces[1], tgt_valid, all_valid, k, turn)
+            fused.CODES[filled.name], _axes(filled), faces[1], tgt_valid, all_valid, k, k_max, turn)
     by_symmetry = (symmetric and src_kind == fused.LATLONG and filled.name == "cube"
                    and cube_symmetry.applies(source.grid[-1], rotation))
     cube_rows = (img, *reduction, faces[1], k, cube_symmetry._kinds()) if by_symmetry else None
@@ -330,7 +346,8 @@ class Resampler:
                 or fused.CODES.get(_face_layout(target).name) is None:
             return  # not cached: __call__ resamples directly
         k, steps = supersampling(source_layout, tuple(source_grid), target, out_grid, rotation, samples)
-        self._build(source_layout, source_grid, out_grid, k, steps)
+        k_max = adaptive_rate(source_layout, _face_layout(target), k) if samples is None else k
+        self._build(source_layout, source_grid, out_grid, k, k_max, steps)
 
     @property
     def nbytes(self) -> int:
@@ -338,7 +355,7 @@ class Resampler:
             return self._separable.nbytes
         return 0 if self.offsets is None else self.offsets.nbytes + self.idx.nbytes + self.wts.nbytes
 
-    def _build(self, source_layout: Layout, source_grid, out_grid, k: int, steps: polar.Steps) -> None:
+    def _build(self, source_layout: Layout, source_grid, out_grid, k: int, k_max: int, steps: polar.Steps) -> None:
         filled = _face_layout(self.target)
         if separable.applies(source_layout, filled, self.rotation):  # as resample does it
             self._separable = separable.Separable(tuple(source_grid), tuple(out_grid[-2:]), k, self.rotation)
@@ -346,8 +363,9 @@ class Resampler:
         grid = filled.grid_shape(self.target.size_of(out_grid))
         faces = grid if filled.faces > 1 else (1,) + grid
         lines, w = faces[0] * faces[1], faces[2]
-        max_taps = max(TILE_TAPS, 16 * (k * k + 1))
-        check_memory(lines * w * (25 * 8 + 8) + min(lines, 64) * w * max_taps * 8,
+        max_taps = max(TILE_TAPS, 16 * (k_max * k_max + 1))
+        band = max(1, min(16, TAPS_SCRATCH_BYTES // (w * max_taps * 8)))  # lines a thread lists at a time
+        check_memory(lines * w * (25 * 8 + 8) + limits.threads() * band * w * max_taps * 8,
                      f"footprint weights of {self.layout.name} → {self.target.name} size {self.size}", kernels=True)
         src_kind = fused.CODES[source_layout.name]
         self._levels = None  # a latlong source's polar reduction levels, when it has any
@@ -371,7 +389,6 @@ class Resampler:
         tgt_valid = (np.ones((1, 1, 1), np.uint8) if all_valid
                      else filled.valid_mask(grid).reshape(faces).astype(np.uint8))
         turn = np.eye(3) if self.rotation is None else np.asarray(self.rotation, dtype=np.float64)
-        band = 16
         parts = []
 
         def taps(first: int):
@@ -380,7 +397,8 @@ class Resampler:
             counts = np.empty(n * w, np.int64)
             fused.footprint_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, caps,
                                  _axes(source_layout), source_grid[-2], source_grid[-1], fused.CODES[filled.name],
-                                 _axes(filled), faces[1], w, tgt_valid, all_valid, k, turn, first, idx, wts, counts)
+                                 _axes(filled), faces[1], w, tgt_valid, all_valid, k, k_max, turn, first, idx, wts,
+                                 counts)
             keep = np.arange(max_taps)[None, :] < counts[:, None]
             return counts, idx[keep], wts[keep]
 
@@ -393,6 +411,38 @@ class Resampler:
         self.idx = np.concatenate([i for _, i, _ in parts])
         self.wts = np.concatenate([q for _, _, q in parts])
         self._filled_grid, self._lines = grid, (lines, w)
+
+    def energy_gains(self, rim_margin: float | None = None) -> np.ndarray:
+        """For every source pixel, the relative error of ∫L dω that a sun wholly in that pixel takes through this
+        conversion: (Σ_t Ω_t W_ts) / Ω_s − 1, float64 of the source's grid (a cross's as cube faces; NaN where a
+        pixel covers no sphere, and with ``rim_margin`` (degrees) where it lies that near either layout's disc
+        rim direction — one direction spread over a ring of pixels). Exact for every pixel at once — the
+        conversion is linear, so a sun's energy out is its column of the weights weighted by the target's solid
+        angles — where sampling suns finds only the pixels it tries. A source box-reduced first is measured on its
+        reduction: the box keeps each pixel's energy (its Ω-weighted mean), so a pixel's gain is its block's."""
+        layout = CUBE if isinstance(self.layout, Cross) else self.layout
+        grid = CUBE.grid_shape(self.layout.size_of(self.grid)) if isinstance(self.layout, Cross) else self.grid
+        if self._separable is None and self.offsets is None:
+            gains = _expanded_gains(layout, grid, self.target, self.size, self.rotation)
+        else:
+            omega_s = pixel_solid_angles(layout, grid)
+            target = _face_layout(self.target)
+            omega_t = pixel_solid_angles(target, target.grid_shape(self.target.size_of(self._target_grid())))
+            if self._separable is not None:
+                delivered = _separable_delivery(self._separable, omega_t)
+            else:
+                delivered = _taps_delivery(self, layout, grid, omega_t.reshape(-1))
+            with np.errstate(invalid="ignore", divide="ignore"):
+                gains = np.where(omega_s > 0, delivered.reshape(grid) / omega_s - 1.0, np.nan)
+        if rim_margin is not None:
+            d = pixel_directions(layout, grid)
+            for rim in (layout.rim_direction(), self.target.rim_direction()):
+                if rim is not None:
+                    gains[d @ rim > math.cos(math.radians(rim_margin))] = np.nan
+        return gains
+
+    def _target_grid(self) -> tuple[int, ...]:
+        return self.target.grid_shape(self.size)
 
     def __call__(self, env: EnvMap) -> EnvMap:
         if env.layout != self.layout or env.grid != self.grid:
@@ -422,6 +472,7 @@ class Resampler:
 
 
 TILE_TAPS = fused.TILE * fused.TILE
+TAPS_SCRATCH_BYTES = 64 << 20  # a thread's buffer of unmerged taps while a Resampler lists them
 
 
 def _axes(lay: Layout) -> np.ndarray:
@@ -493,3 +544,47 @@ def resample_memory(source_pixels: int, target_pixels: int, target: Layout) -> i
     (beyond the source map itself)."""
     per_target = RESAMPLE_BYTES_PER_TARGET_PIXEL.get(target.name, RESAMPLE_BYTES_PER_TARGET_PIXEL_DEFAULT)
     return source_pixels * RESAMPLE_BYTES_PER_SOURCE_PIXEL + target_pixels * per_target
+
+
+# ---- energy of a one-pixel sun, every pixel at once (Resampler.energy_gains) ----------------------------------------
+
+def _taps_delivery(resampler: Resampler, layout: Layout, grid: tuple[int, ...], omega_t: np.ndarray) -> np.ndarray:
+    """Σ_t Ω_t W_ts per source pixel s (flat), from the cached taps; a tap on a lat-long's reduced polar row is
+    handed on to the source pixels it averages (2^ℓ of them, or the whole row)."""
+    n_src = math.prod(grid)
+    per_tap = resampler.wts.astype(np.float64) * np.repeat(omega_t, np.diff(resampler.offsets))
+    total = np.bincount(resampler.idx, per_tap, minlength=n_src)
+    delivered = total[:n_src].copy()
+    if resampler._levels is None:
+        return delivered
+    h, w = grid
+    found = resampler._levels
+    levels = polar.kernel_levels(found, w)
+    row_offsets, _, _ = polar.row_layout(levels, w)
+    reduced = total[n_src:]
+    rows = delivered.reshape(h, w)
+    for r in np.nonzero(levels)[0]:
+        n = w >> levels[r]
+        part = reduced[row_offsets[r]:row_offsets[r] + n]
+        if found[r] > polar.max_level(w):  # read as the whole row's mean
+            rows[r] += part.sum() / w
+        else:
+            rows[r] += np.repeat(part / (w // n), w // n)
+    return delivered
+
+
+def _separable_delivery(matrices: separable.Separable, omega_t: np.ndarray) -> np.ndarray:
+    """Σ_t Ω_t W_ts for a separable lat-long → lat-long: rows and columns apart (a target row's pixels share Ω)."""
+    row_omega = omega_t[:, 0]
+    out = np.zeros((matrices.rows.shape[1], matrices.columns.shape[1]))
+    for rows, columns in ((matrices.rows, matrices.columns), (matrices.rows_half, matrices.columns_half)):
+        out += np.outer(rows.T @ row_omega, np.asarray(columns.sum(axis=0)).ravel())
+    return out
+
+
+def _expanded_gains(layout: Layout, grid: tuple[int, ...], target: Layout, size: int, rotation) -> np.ndarray:
+    """energy_gains of a source the conversion box-reduces first: its reduction's, each block's for its pixels."""
+    reduced = box_reduce(EnvMap(np.zeros(grid + (3,), np.float32), layout))
+    gains = Resampler(layout, reduced.grid, target, size, rotation=rotation).energy_gains()
+    gains = np.repeat(np.repeat(gains, 2, axis=-2), 2, axis=-1)
+    return np.where(pixel_solid_angles(layout, grid) > 0, gains, np.nan)
