@@ -322,7 +322,8 @@ class Resampler:
     :func:`resample` would sum for it (its k×k subsamples' B-spline taps, merged); calling it on a map of that
     layout and grid is then one gather per pixel — the same values as :func:`resample` to float32 rounding
     (``tests/test_resample.py``), several times faster. The weights take ~8 bytes per tap, ~25 taps per target
-    pixel at k = 3 (:attr:`nbytes`; refused over the memory budget). Conversions that box-reduce the source first
+    pixel at k = 3 — more where each pixel takes its own rate (:func:`adaptive_rate`) — (:attr:`nbytes`; refused
+    over the memory budget). :meth:`energy_gains` reads them as a sun in every source pixel. Conversions that box-reduce the source first
     (over 16 source pixels per target pixel) are not cached: calling such a Resampler resamples directly."""
 
     def __init__(self, layout: str | Layout, grid: tuple[int, ...], target: str | Layout, size: int | None = None, *,
