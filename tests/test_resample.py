@@ -343,9 +343,10 @@ def test_energy_gains_are_a_sun_converted_directly(source, size, target, out_siz
 
 
 # Worst |gain| of a one-pixel sun over every source pixel kept (issue 9's bar is 0.2 %), measured 2026-12-05, and
-# what it was before this stop's fixes: the disc sources' per-pixel rates, the cube's corner padding.
+# what it was before this stop's fixes: per-pixel rates, a lat-long target's pole rows ramped, the cube's corner padding.
 GAIN_CEILINGS = [
-    ("angular", 128, "latlong", 64, 0.012),  # was 15.5 %
+    ("angular", 128, "latlong", 64, 0.004),  # was 15.5 % (0.95 % before the pole rows' ramp)
+    ("sphere", 128, "latlong", 64, 0.006),  # was 11.5 %
     ("angular", 128, "cube", 32, 0.010),  # was 42 %
     ("sphere", 128, "cube", 32, 0.006),  # was 17 %
     ("sphere", 128, "angular", 64, 0.006),  # was 74 %
@@ -364,7 +365,7 @@ def test_a_sun_in_any_pixel_keeps_its_energy_within_the_measured_ceiling(source,
     assert worst < ceiling, f"{100 * worst:.3f} %"
 
 
-@pytest.mark.xfail(strict=True, reason="cube, angular and mirror-ball sources: a one-pixel sun off by up to 1–4.3 % "
+@pytest.mark.xfail(strict=True, reason="cube, angular and mirror-ball sources: a one-pixel sun off by up to 0.3–4.3 % "
                                        "in some pixels (benchmarks/bench_energy.py, every pixel)")
 @pytest.mark.parametrize("source, target", [("cube", "latlong"), ("cube", "angular"), ("angular", "latlong"),
                                             ("sphere", "latlong")])

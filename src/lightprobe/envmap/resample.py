@@ -169,12 +169,12 @@ def supersampling(source: Layout, source_grid: tuple[int, ...], target: Layout, 
 
 
 def adaptive_rate(source: Layout, target: Layout, k: int) -> int:
-    """The most subsamples a side (k_max) a pixel may take where its footprint is long, when the rate is automatic:
-    where either layout is a disc, whose rim spreads one direction over a ring, or the source is a cube, whose
-    corner texels are a fifth of its centre's, each pixel takes its own rate between k and
-    :data:`lightprobe.envmap.polar.MAX_SAMPLES` (:func:`lightprobe.envmap.fused._rates`). Elsewhere k: a
-    lat-long source's polar rows are shortened by their reductions."""
-    if source.name in DISCS or target.name in DISCS or source.name == "cube":
+    """The most subsamples a side (k_max) a pixel may take, when the rate is automatic: where either layout is a
+    disc, whose rim spreads one direction over a ring, or the source is a cube, whose corner texels are a fifth of
+    its centre's, or the target is a lat-long, whose rows next to a pole are rings, each pixel takes its own rate
+    between k and :data:`lightprobe.envmap.polar.MAX_SAMPLES` (:func:`lightprobe.envmap.fused._rates`). Elsewhere k
+    (a lat-long into a cube: its polar rows are shortened by their reductions)."""
+    if source.name in DISCS or target.name in DISCS or source.name == "cube" or target.name == "latlong":
         return max(k, polar.MAX_SAMPLES)
     return k
 
