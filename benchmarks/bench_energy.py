@@ -31,12 +31,12 @@ SOURCES = {"latlong": 128, "cube": 64, "angular": 128, "sphere": 128}
 TARGETS = ("latlong", "cube", "angular", "sphere")
 SIZES = (16, 32, 64)
 RIM_MARGIN = 25.0  # degrees from a disc's rim direction left out
-RIM_COS = -math.cos(math.radians(RIM_MARGIN))
+RIM_COS = math.cos(math.radians(RIM_MARGIN))
 
 
 def near_rim(lay, d: np.ndarray) -> bool:
     rim = lay.rim_direction()
-    return rim is not None and float(d @ rim) > -RIM_COS
+    return rim is not None and float(d @ rim) > RIM_COS
 
 
 def sun_map(lay, size: int, d: np.ndarray) -> EnvMap:

@@ -173,7 +173,7 @@ def _padding_index(lay: Layout, grid: Grid, pad: int):
     return border, (f, row, col)
 
 
-def _cube_corner_blocks(lay: "Layout", n: int, pad: int, border: np.ndarray, f, row, col) -> None:
+def _cube_corner_blocks(lay: Layout, n: int, pad: int, border: np.ndarray, f, row, col) -> None:
     """The pad × pad block of a cube face's padding beyond each of its corners, refilled in place: the face next
     round the vertex, anticlockwise, gives its own corner block, each of its texels once.
 
@@ -202,27 +202,21 @@ def _cube_corner_blocks(lay: "Layout", n: int, pad: int, border: np.ndarray, f, 
         centres = [texel_direction(face, last / 2, last / 2) for face, _, _ in members]
         order = np.argsort([math.atan2(d @ e2, d @ e1) for d in centres])
         ring = [members[i] for i in order]
-        for i, (face, r, c) in enumerate(ring):
-            donor, dr, dc = ring[(i + 1) % 3]
+        for place, (face, r, c) in enumerate(ring):
+            donor, dr, dc = ring[(place + 1) % 3]
             out_r, out_c = (-1 if r == 0 else 1), (-1 if c == 0 else 1)  # this corner's outward steps
             in_r, in_c = (1 if dr == 0 else -1), (1 if dc == 0 else -1)  # the donor's inward steps
-            def slot(a: int, b: int) -> tuple[int, int]:  # a texels out in columns, b in rows
-                return r + out_r * (b + 1), c + out_c * (a + 1)
-
-            def texel(i: int, j: int) -> tuple[int, int]:  # i texels in in rows, j in columns
-                return dr + in_r * i, dc + in_c * j
-
-            def fit(pairs) -> float:
-                return sum(float(texel_direction(donor, *texel(*t)) @ texel_direction(face, *slot(*q)))
-                           for q, t in pairs)
-
             for a in range(pad):
                 for b in range(a, pad):  # slots (a, b) and (b, a) take texels (a, b) and (b, a), as fits best
-                    straight, crossed = [((a, b), (b, a)), ((b, a), (a, b))], [((a, b), (a, b)), ((b, a), (b, a))]
-                    for q, t in max(straight, crossed, key=fit):
-                        pr, pc = slot(*q)
+                    # slot (a, b): a texels out in columns, b in rows; texel (a, b): a texels in in rows, b in columns
+                    slots = [(r + out_r * (b + 1), c + out_c * (a + 1)), (r + out_r * (a + 1), c + out_c * (b + 1))]
+                    texels = [(dr + in_r * a, dc + in_c * b), (dr + in_r * b, dc + in_c * a)]
+                    here = [texel_direction(face, *q) for q in slots]
+                    there = [texel_direction(donor, *t) for t in texels]
+                    swapped = there[1] @ here[0] + there[0] @ here[1] >= there[0] @ here[0] + there[1] @ here[1]
+                    for (pr, pc), texel in zip(slots, texels[::-1] if swapped else texels):
                         j = index[(face, pr + pad, pc + pad)]
-                        f[j], (row[j], col[j]) = donor, texel(*t)
+                        f[j], (row[j], col[j]) = donor, texel
 
 
 # ============================================================================================================ latlong

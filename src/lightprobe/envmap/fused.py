@@ -123,6 +123,25 @@ def target_direction(kind, axes, face, u, v):  # pragma: no cover - compiled
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def _on_face_plane(face, x, y, z, h, w):  # pragma: no cover - compiled
+    """(depth along the face's axis, column, row) of direction (x, y, z) on cube face ``face``'s plane — past the
+    face's edge too, for a direction off the face (meaningful while the depth is positive)."""
+    m = FACE_MATRICES[face]
+    ls = m[0, 0] * x + m[1, 0] * y + m[2, 0] * z  # Aᵀ d
+    lt = m[0, 1] * x + m[1, 1] * y + m[2, 1] * z
+    lz = m[0, 2] * x + m[1, 2] * y + m[2, 2] * z
+    return lz, (ls / lz + 1.0) / 2.0 * w - 0.5, (lt / lz + 1.0) / 2.0 * h - 0.5
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _turned(x, y, z, rotation):  # pragma: no cover - compiled
+    """d @ R: the source direction a target direction shows (the target at d shows the source at Rᵀd)."""
+    return (x * rotation[0, 0] + y * rotation[1, 0] + z * rotation[2, 0],
+            x * rotation[0, 1] + y * rotation[1, 1] + z * rotation[2, 1],
+            x * rotation[0, 2] + y * rotation[1, 2] + z * rotation[2, 2])
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def source_position(kind, axes, x, y, z, h, w):  # pragma: no cover - compiled
     """(face, column, row) continuous pixel coordinates (centre of column c is c) of direction (x, y, z), which
     need not be unit length. Total, like :meth:`lightprobe.layouts.Layout.dir_to_uv`."""
@@ -140,11 +159,8 @@ def source_position(kind, axes, x, y, z, h, w):  # pragma: no cover - compiled
             face = 4 if z >= 0.0 else 5
         if x == y == z == 0.0:
             face = 0
-        m = FACE_MATRICES[face]
-        ls = m[0, 0] * x + m[1, 0] * y + m[2, 0] * z  # Aᵀ d
-        lt = m[0, 1] * x + m[1, 1] * y + m[2, 1] * z
-        lz = m[0, 2] * x + m[1, 2] * y + m[2, 2] * z
-        return face, (ls / lz + 1.0) / 2.0 * w - 0.5, (lt / lz + 1.0) / 2.0 * h - 0.5
+        _, px, py = _on_face_plane(face, x, y, z, h, w)
+        return face, px, py
     norm = math.sqrt(x * x + y * y + z * z)
     x, y, z = x / norm, y / norm, z / norm
     if kind == ANGULAR:
@@ -537,35 +553,22 @@ ADAPTIVE_SPACING = 0.5  # source pixels between neighbouring lookups, at most, w
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _source_xy(tgt_kind, tgt_axes, face, u, v, rotation, src_kind, src_axes, src_h, src_w):  # pragma: no cover
-    """The source position (face, column, row) of target coordinates (u, v)."""
-    x, y, z, _ = target_direction(tgt_kind, tgt_axes, face, u, v)
-    rx = x * rotation[0, 0] + y * rotation[1, 0] + z * rotation[2, 0]  # d @ R
-    ry = x * rotation[0, 1] + y * rotation[1, 1] + z * rotation[2, 1]
-    rz = x * rotation[0, 2] + y * rotation[1, 2] + z * rotation[2, 2]
-    return source_position(src_kind, src_axes, rx, ry, rz, src_h, src_w)
-
-
-@njit(cache=True, inline="always", error_model="numpy")
 def _source_step(tgt_kind, tgt_axes, face, u0, v0, u1, v1, rotation, src_kind, src_axes, src_h,
                  src_w):  # pragma: no cover - compiled
     """How far apart, in source pixels, the source positions of target points (u0, v0) and (u1, v1) land. On a
     cube the second is placed on the first one's face plane, extended past its edge if need be (a step across an
     edge is still a step). A lat-long's columns count at their width, sin θ of a column: nearer a pole the polar
     reductions (:mod:`lightprobe.envmap.polar`) serve, not more lookups."""
-    f0, x0, y0 = _source_xy(tgt_kind, tgt_axes, face, u0, v0, rotation, src_kind, src_axes, src_h, src_w)
-    f1, x1, y1 = _source_xy(tgt_kind, tgt_axes, face, u1, v1, rotation, src_kind, src_axes, src_h, src_w)
+    x, y, z, _ = target_direction(tgt_kind, tgt_axes, face, u0, v0)
+    rx, ry, rz = _turned(x, y, z, rotation)
+    f0, x0, y0 = source_position(src_kind, src_axes, rx, ry, rz, src_h, src_w)
+    x, y, z, _ = target_direction(tgt_kind, tgt_axes, face, u1, v1)
+    rx, ry, rz = _turned(x, y, z, rotation)
+    f1, x1, y1 = source_position(src_kind, src_axes, rx, ry, rz, src_h, src_w)
     if f0 != f1:
-        x, y, z, _ = target_direction(tgt_kind, tgt_axes, face, u1, v1)
-        m = FACE_MATRICES[f0]
-        rx = x * rotation[0, 0] + y * rotation[1, 0] + z * rotation[2, 0]  # d @ R
-        ry = x * rotation[0, 1] + y * rotation[1, 1] + z * rotation[2, 1]
-        rz = x * rotation[0, 2] + y * rotation[1, 2] + z * rotation[2, 2]
-        lz = m[0, 2] * rx + m[1, 2] * ry + m[2, 2] * rz
-        if lz <= 0.0:
+        depth, x1, y1 = _on_face_plane(f0, rx, ry, rz, src_h, src_w)
+        if depth <= 0.0:
             return 0.0
-        x1 = ((m[0, 0] * rx + m[1, 0] * ry + m[2, 0] * rz) / lz + 1.0) / 2.0 * src_w - 0.5
-        y1 = ((m[0, 1] * rx + m[1, 1] * ry + m[2, 1] * rz) / lz + 1.0) / 2.0 * src_h - 0.5
     dx, dy = abs(x1 - x0), abs(y1 - y0)
     if src_kind == LATLONG:
         dx = min(dx, src_w - dx) * math.sin(math.pi * min(max((y0 + y1 + 1.0) / (2.0 * src_h), 0.0), 1.0))
@@ -594,7 +597,7 @@ def _rates(tgt_kind, tgt_axes, face, row, col, h, w, k, k_max, rotation, src_kin
     kv = min(max(k, int(math.ceil(down / ADAPTIVE_SPACING - 1e-9))), k_max)
     if tgt_kind == LATLONG:
         from_pole = min(row, h - 1 - row)
-        kv = min(max(kv, k_max - POLE_RAMP * from_pole), k_max)
+        kv = max(kv, k_max - POLE_RAMP * from_pole)
     return ku, kv
 
 
@@ -622,9 +625,7 @@ def _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, k, k_max, rotation, sr
             weight = 1.0
         if weight <= 0.0:
             continue
-        rx = x * rotation[0, 0] + y * rotation[1, 0] + z * rotation[2, 0]  # d @ R
-        ry = x * rotation[0, 1] + y * rotation[1, 1] + z * rotation[2, 1]
-        rz = x * rotation[0, 2] + y * rotation[1, 2] + z * rotation[2, 2]
+        rx, ry, rz = _turned(x, y, z, rotation)
         pfs[n], pxs[n], pys[n] = source_position(src_kind, src_axes, rx, ry, rz, src_h, src_w)
         pws[n] = weight
         wsum += weight

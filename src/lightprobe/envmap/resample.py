@@ -168,6 +168,9 @@ def supersampling(source: Layout, source_grid: tuple[int, ...], target: Layout, 
     return polar.samples_needed(steps, auto_samples(ratio)), steps
 
 
+DISCS = ("angular", "sphere")  # layouts whose rim spreads one direction over a ring of pixels
+
+
 def adaptive_rate(source: Layout, target: Layout, k: int) -> int:
     """The most subsamples a side (k_max) a pixel may take, when the rate is automatic: where either layout is a
     disc, whose rim spreads one direction over a ring, or the source is a cube, whose corner texels are a fifth of
@@ -177,9 +180,6 @@ def adaptive_rate(source: Layout, target: Layout, k: int) -> int:
     if source.name in DISCS or target.name in DISCS or source.name == "cube" or target.name == "latlong":
         return max(k, polar.MAX_SAMPLES)
     return k
-
-
-DISCS = ("angular", "sphere")
 
 
 def _face_layout(target: Layout) -> Layout:
@@ -322,9 +322,10 @@ class Resampler:
     :func:`resample` would sum for it (its k×k subsamples' B-spline taps, merged); calling it on a map of that
     layout and grid is then one gather per pixel — the same values as :func:`resample` to float32 rounding
     (``tests/test_resample.py``), several times faster. The weights take ~8 bytes per tap, ~25 taps per target
-    pixel at k = 3 — more where each pixel takes its own rate (:func:`adaptive_rate`) — (:attr:`nbytes`; refused
-    over the memory budget). :meth:`energy_gains` reads them as a sun in every source pixel. Conversions that box-reduce the source first
-    (over 16 source pixels per target pixel) are not cached: calling such a Resampler resamples directly."""
+    pixel at k = 3, more where each pixel takes its own rate (:func:`adaptive_rate`) (:attr:`nbytes`; refused
+    over the memory budget); :meth:`energy_gains` reads them as a sun in every source pixel. Conversions that
+    box-reduce the source first (over 16 source pixels per target pixel) are not cached: calling such a Resampler
+    resamples directly."""
 
     def __init__(self, layout: str | Layout, grid: tuple[int, ...], target: str | Layout, size: int | None = None, *,
                  rotation: np.ndarray | None = None, samples: int | None = None):
@@ -427,8 +428,8 @@ class Resampler:
             gains = _expanded_gains(layout, grid, self.target, self.size, self.rotation)
         else:
             omega_s = pixel_solid_angles(layout, grid)
-            target = _face_layout(self.target)
-            omega_t = pixel_solid_angles(target, target.grid_shape(self.target.size_of(self._target_grid())))
+            filled = _face_layout(self.target)
+            omega_t = pixel_solid_angles(filled, filled.grid_shape(self.size))
             if self._separable is not None:
                 delivered = _separable_delivery(self._separable, omega_t)
             else:
@@ -441,9 +442,6 @@ class Resampler:
                 if rim is not None:
                     gains[d @ rim > math.cos(math.radians(rim_margin))] = np.nan
         return gains
-
-    def _target_grid(self) -> tuple[int, ...]:
-        return self.target.grid_shape(self.size)
 
     def __call__(self, env: EnvMap) -> EnvMap:
         if env.layout != self.layout or env.grid != self.grid:
