@@ -178,6 +178,7 @@ def section_speed(rep: Report) -> str:
             + table(["conversion", "worst", "pixels over 0.2 %"],
                     [[label, f"{100 * worst:.3f} %", f"{100 * share:.1f} %"]
                      for label, (worst, share) in _every_pixel_gains().items()])
+            + '<div class="grid">' + _gain_pictures(rep) + "</div>"
             + "<p>A lat-long source holds 0.2 % into lat-long and cube targets. Cube, angular and mirror-ball "
               "sources do not yet everywhere: a cube's edge texels, where the area per texel folds (~0.6 % at 64 "
               "texels a side, falling as 1/N), and target pixels whose subsample rate differs from their "
@@ -201,6 +202,31 @@ def _every_pixel_gains() -> dict[str, tuple[float, float]]:
         gains = np.abs(gains[np.isfinite(gains)])
         out[label] = (float(gains.max()), float((gains > 2e-3).mean()))
     return out
+
+
+def _gain_pictures(rep: Report) -> str:
+    """Heat maps of |gain| over the source's pixels: a mirror ball into an angular map at one rate for the whole
+    map (as before) and at each pixel's own, and a cube into a lat-long (what is left)."""
+    from .envmap import Resampler
+    from .envmap.resample import supersampling
+    from .layouts import layout
+
+    ball, angular, cube, latlong = layout("sphere"), layout("angular"), layout("cube"), layout("latlong")
+    k, _ = supersampling(ball, ball.grid_shape(128), angular, angular.grid_shape(64), None, None)
+    one_rate = Resampler(ball, ball.grid_shape(128), angular, 64, samples=k).energy_gains(rim_margin=25.0)
+    own_rate = Resampler(ball, ball.grid_shape(128), angular, 64).energy_gains(rim_margin=25.0)
+    cube_gains = Resampler(cube, cube.grid_shape(64), latlong, 64).energy_gains()
+    strip = np.concatenate(list(cube_gains), axis=1)  # the six faces side by side, as a cube file is
+    scale = "black 0, white 1 % or more; grey: no sphere, or within 25° of a rim direction"
+    return (rep.display_picture("energy_ball_one_rate", heatmap(np.abs(one_rate), 0.01),
+                                f"mirror ball 128 → angular 64, one rate k = {k}: |gain| of a sun in each pixel "
+                                f"({scale})", width=256)
+            + rep.display_picture("energy_ball_own_rate", heatmap(np.abs(own_rate), 0.01),
+                                  f"the same, each target pixel its own rate ({scale})", width=256)
+            + rep.display_picture("energy_cube_latlong", heatmap(np.abs(strip), 0.01),
+                                  f"cube 64 → lat-long 64, faces +X −X +Y −Y +Z −Z: what is left — the edge texels, and rings where "
+                                  f"a target pixel's rate differs from its neighbours' ({scale})",
+                                  width=768))
 
 
 def _one_pixel_sun(grid: tuple[int, int], d: np.ndarray) -> EnvMap:
