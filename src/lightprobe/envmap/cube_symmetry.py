@@ -187,8 +187,8 @@ def _orbit(src, levels, reduced, row_offsets, caps, n, k, kinds, base, row, col,
     if base == BACK:
         taps, wsum = _back_subsamples(row, col, n, k, h, columns, pfs, pxs, pys, pws)
     else:
-        taps, wsum = _subsamples(cube, eye, base, row, col, n, n, k, k, eye, latlong, eye, h, w, pfs, pxs, pys,
-                                 pws)
+        taps, wsum = _subsamples(cube, eye, base, row, col, n, n, (k, k, k, k, k, k), eye, latlong, eye, h, w, pfs,
+                                 pxs, pys, pws)
     kind, c0, r0, tw, th = _base_tile(levels, caps, h, w, pxs, pys, pws, taps, scratch, tile)
     for i in range(count):
         face, r, c, shift, mirror = images[i, 0], images[i, 1], images[i, 2], images[i, 3], images[i, 4] == 1
@@ -206,8 +206,8 @@ def _orbit(src, levels, reduced, row_offsets, caps, n, k, kinds, base, row, col,
         for ch in range(3):
             out[face, r - top, c, ch] = acc[ch]
         if kind != NO_TILE:  # the general path used the scratch: the tile is rebuilt for the other images
-            taps, wsum = _subsamples(cube, eye, base, row, col, n, n, k, k, eye, latlong, eye, h, w, pfs, pxs, pys,
-                                 pws)
+            taps, wsum = _subsamples(cube, eye, base, row, col, n, n, (k, k, k, k, k, k), eye, latlong, eye, h, w, pfs,
+                                 pxs, pys, pws)
             kind, c0, r0, tw, th = _base_tile(levels, caps, h, w, pxs, pys, pws, taps, scratch, tile)
 
 
