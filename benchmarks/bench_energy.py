@@ -11,6 +11,8 @@ layout at sizes 16, 32 and 64 (unturned), two tables:
 - every pixel: the gain of a sun in each source pixel, relative to the sun's own ∫L dω, for all pixels at once —
   exact, from the conversion's weights (:meth:`lightprobe.envmap.Resampler.energy_gains`). Random suns miss the
   few pixels where a conversion goes wrong (a cube's edges, the rim side of a disc); this table does not.
+Then the every-pixel measure at full size (cube 256–512, discs 1024, targets 256–1024), and what each pixel's own
+subsample rate costs against one rate for the whole map.
 Suns within 25° of a disc's rim direction (where one direction is a ring of pixels) are left out, in the source and
 in the target.
 """
@@ -87,6 +89,8 @@ def main() -> None:
                 print(f"  {name + ' ' + str(size):16s} {target:8s} {out_size:4d} {errors.size:5d} "
                       f"{errors.max():7.3f}% {np.median(errors):7.3f}%  {(errors > 0.2).sum():3d}")
     every_pixel()
+    full_size()
+    rate_cost()
 
 
 def every_pixel() -> None:
@@ -102,6 +106,55 @@ def every_pixel() -> None:
                 gains = np.abs(gains[np.isfinite(gains)]) * 100
                 print(f"  {name + ' ' + str(size):16s} {target:8s} {out_size:4d} {gains.size:6d} {gains.max():7.3f}% "
                       f"{np.percentile(gains, 99.9):7.3f}% {np.median(gains):7.3f}%  {(gains > 0.2).mean() * 100:5.1f} %")
+
+
+FULL_SIZE = [("cube", 256, "latlong", 512), ("cube", 512, "latlong", 1024), ("cube", 256, "cube", 256),
+             ("cube", 256, "angular", 512), ("angular", 1024, "latlong", 512), ("angular", 1024, "cube", 256),
+             ("sphere", 1024, "cube", 256), ("sphere", 1024, "angular", 512)]
+
+
+def full_size() -> None:
+    """The every-pixel measure at the sizes maps are converted at, and a turned cube into a cube."""
+    from lightprobe.frames import rotation_from_ypr
+
+    print("\nevery source pixel as the sun, at full size (a turned cube: yaw 30°, pitch 20°, roll 10°)")
+    print(f"  {'conversion':34s} {'worst':>8s} {'99.9th':>8s}  over 0.2 %")
+    cases = [(*case, None) for case in FULL_SIZE] + [("cube", 256, "cube", 256, rotation_from_ypr(30, 20, 10))]
+    for name, size, target, out_size, turn in cases:
+        src_layout = layout(name)
+        resampler = Resampler(src_layout, src_layout.grid_shape(size), layout(target), out_size, rotation=turn)
+        gains = resampler.energy_gains(rim_margin=RIM_MARGIN)
+        gains = np.abs(gains[np.isfinite(gains)]) * 100
+        label = f"{name} {size} → {target} {out_size}" + (" turned" if turn is not None else "")
+        print(f"  {label:34s} {gains.max():7.3f}% {np.percentile(gains, 99.9):7.3f}%  {(gains > 0.2).mean() * 100:7.3f} %")
+
+
+RATE_COST = [("angular", 1000, "latlong", 1024), ("sphere", 1000, "latlong", 1024), ("angular", 1000, "cube", 512),
+             ("cube", 512, "latlong", 1024), ("cube", 512, "angular", 1024), ("latlong", 1024, "sphere", 1024)]
+
+
+def rate_cost(rounds: int = 3) -> None:
+    """Time of each pixel's own rate (graded cells, the vertex ramp) against one rate for the map (``samples`` =
+    the automatic base rate k), best of ``rounds`` alternating runs, on random maps."""
+    import time
+
+    from lightprobe.envmap.resample import supersampling
+
+    print("\nper-pixel rates against one rate k for the whole map (best of 3, alternating)")
+    print(f"  {'conversion':34s} {'k':>3s} {'one rate':>9s} {'per pixel':>9s}  ratio")
+    rng = np.random.default_rng(1)
+    for name, size, target, out_size in RATE_COST:
+        src_layout, tgt_layout = layout(name), layout(target)
+        env = EnvMap(rng.random(src_layout.grid_shape(size) + (3,)).astype(np.float32), src_layout)
+        k = supersampling(src_layout, env.grid, tgt_layout, tgt_layout.grid_shape(out_size), None, None)[0]
+        best = {"one": math.inf, "own": math.inf}
+        for _ in range(rounds):
+            for mode in best:
+                t0 = time.perf_counter()
+                resample(env, tgt_layout, out_size, samples=k if mode == "one" else None)
+                best[mode] = min(best[mode], time.perf_counter() - t0)
+        print(f"  {name} {size} → {target} {out_size}".ljust(36) + f"{k:3d} {best['one']:8.3f}s {best['own']:8.3f}s "
+              f"{best['own'] / best['one']:5.2f}×")
 
 
 if __name__ == "__main__":
