@@ -93,6 +93,12 @@ def main() -> None:
     rate_cost()
 
 
+def kept_percent(resampler: Resampler) -> np.ndarray:
+    """|energy gain| in % of a sun in each source pixel, those within RIM_MARGIN of a rim direction left out."""
+    gains = resampler.energy_gains(rim_margin=RIM_MARGIN)
+    return np.abs(gains[np.isfinite(gains)]) * 100
+
+
 def every_pixel() -> None:
     print("\nevery source pixel as the sun (exact, from the conversion's weights; gain relative to the sun's own ∫L dω)")
     print(f"  {'source':16s} {'target':8s} {'size':>4s} {'pixels':>6s} {'worst':>8s} {'99.9th':>8s} {'median':>8s}"
@@ -102,8 +108,7 @@ def every_pixel() -> None:
         grid = src_layout.grid_shape(size)
         for target in TARGETS:
             for out_size in SIZES:
-                gains = Resampler(src_layout, grid, layout(target), out_size).energy_gains(rim_margin=RIM_MARGIN)
-                gains = np.abs(gains[np.isfinite(gains)]) * 100
+                gains = kept_percent(Resampler(src_layout, grid, layout(target), out_size))
                 print(f"  {name + ' ' + str(size):16s} {target:8s} {out_size:4d} {gains.size:6d} {gains.max():7.3f}% "
                       f"{np.percentile(gains, 99.9):7.3f}% {np.median(gains):7.3f}%  {(gains > 0.2).mean() * 100:5.1f} %")
 
@@ -122,9 +127,8 @@ def full_size() -> None:
     cases = [(*case, None) for case in FULL_SIZE] + [("cube", 256, "cube", 256, rotation_from_ypr(30, 20, 10))]
     for name, size, target, out_size, turn in cases:
         src_layout = layout(name)
-        resampler = Resampler(src_layout, src_layout.grid_shape(size), layout(target), out_size, rotation=turn)
-        gains = resampler.energy_gains(rim_margin=RIM_MARGIN)
-        gains = np.abs(gains[np.isfinite(gains)]) * 100
+        gains = kept_percent(Resampler(src_layout, src_layout.grid_shape(size), layout(target), out_size,
+                                       rotation=turn))
         label = f"{name} {size} → {target} {out_size}" + (" turned" if turn is not None else "")
         print(f"  {label:34s} {gains.max():7.3f}% {np.percentile(gains, 99.9):7.3f}%  {(gains > 0.2).mean() * 100:7.3f} %")
 

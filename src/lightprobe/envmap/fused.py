@@ -553,18 +553,25 @@ ADAPTIVE_SPACING = 0.5  # source pixels between neighbouring lookups, at most, w
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def _source_point(tgt_kind, tgt_axes, face, u, v, rotation, src_kind, src_axes, src_h,
+                  src_w):  # pragma: no cover - compiled
+    """(source face, column, row, and the turned direction rx, ry, rz) that target point (u, v) of ``face`` shows."""
+    x, y, z, _ = target_direction(tgt_kind, tgt_axes, face, u, v)
+    rx, ry, rz = _turned(x, y, z, rotation)
+    f, px, py = source_position(src_kind, src_axes, rx, ry, rz, src_h, src_w)
+    return f, px, py, rx, ry, rz
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def _source_step(tgt_kind, tgt_axes, face, u0, v0, u1, v1, rotation, src_kind, src_axes, src_h,
                  src_w):  # pragma: no cover - compiled
     """How far apart, in source pixels, the source positions of target points (u0, v0) and (u1, v1) land. On a
     cube the second is placed on the first one's face plane, extended past its edge if need be (a step across an
     edge is still a step). A lat-long's columns count at their width, sin θ of a column: nearer a pole the polar
     reductions (:mod:`lightprobe.envmap.polar`) serve, not more lookups."""
-    x, y, z, _ = target_direction(tgt_kind, tgt_axes, face, u0, v0)
-    rx, ry, rz = _turned(x, y, z, rotation)
-    f0, x0, y0 = source_position(src_kind, src_axes, rx, ry, rz, src_h, src_w)
-    x, y, z, _ = target_direction(tgt_kind, tgt_axes, face, u1, v1)
-    rx, ry, rz = _turned(x, y, z, rotation)
-    f1, x1, y1 = source_position(src_kind, src_axes, rx, ry, rz, src_h, src_w)
+    f0, x0, y0, _, _, _ = _source_point(tgt_kind, tgt_axes, face, u0, v0, rotation, src_kind, src_axes, src_h, src_w)
+    f1, x1, y1, rx, ry, rz = _source_point(tgt_kind, tgt_axes, face, u1, v1, rotation, src_kind, src_axes, src_h,
+                                           src_w)
     if f0 != f1:
         depth, x1, y1 = _on_face_plane(f0, rx, ry, rz, src_h, src_w)
         if depth <= 0.0:
@@ -597,9 +604,7 @@ def _aligned_cubes(tgt_kind, rotation):  # pragma: no cover - compiled
 def _from_cube_vertex(tgt_kind, tgt_axes, face, u, v, rotation, src_axes, src_h, src_w):  # pragma: no cover
     """How far, in texels, target point (u, v) lands from the nearest vertex of its cube source face (the larger
     of its distances to the two nearest edges)."""
-    x, y, z, _ = target_direction(tgt_kind, tgt_axes, face, u, v)
-    rx, ry, rz = _turned(x, y, z, rotation)
-    _, px, py = source_position(CUBE, src_axes, rx, ry, rz, src_h, src_w)
+    _, px, py, _, _, _ = _source_point(tgt_kind, tgt_axes, face, u, v, rotation, CUBE, src_axes, src_h, src_w)
     return max(min(px + 0.5, src_w - 0.5 - px), min(py + 0.5, src_h - 0.5 - py))
 
 
@@ -655,7 +660,10 @@ def _rate_rows(tgt_kind, tgt_axes, face, row, h, w, k, k_max, rotation, src_kind
                rates):  # pragma: no cover - compiled
     """Keep ``rates`` — (3, 2, W) int64, the (ku, kv) of :func:`_rates` for face rows row − 1, row and row + 1, row r
     at index r % 3 — current for ``row``: all three when ``fresh`` (a band's first line, a face's first row), else
-    row + 1 alone (the two others are the previous line's). Each pixel's rates are computed once."""
+    row + 1 alone (the two others are the previous line's). Each pixel's rates are computed once; at a fixed rate
+    (``k_max`` = k) none are."""
+    if k_max == k:
+        return
     for r in range(max(row - 1 if fresh else row + 1, 0), min(row + 2, h)):
         for col in range(w):
             rates[r % 3, 0, col], rates[r % 3, 1, col] = _rates(tgt_kind, tgt_axes, face, r, col, h, w, k, k_max,
@@ -663,9 +671,12 @@ def _rate_rows(tgt_kind, tgt_axes, face, row, h, w, k, k_max, rotation, src_kind
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _pixel_rates(rates, tgt_kind, row, col, h, w):  # pragma: no cover - compiled
+def _pixel_rates(rates, tgt_kind, row, col, h, w, k, k_max):  # pragma: no cover - compiled
     """(ku, kv, ku left, ku right, kv above, kv below) of pixel (row, col) from :func:`_rate_rows`' buffer: its
-    rates and its four neighbours' on its face (a lat-long's columns wrap); past a face's edge, its own."""
+    rates and its four neighbours' on its face (a lat-long's columns wrap); past a face's edge, its own. At a
+    fixed rate, k six times."""
+    if k_max == k:
+        return k, k, k, k, k, k
     here = row % 3
     ku, kv = rates[here, 0, col], rates[here, 1, col]
     left, right, above, below = ku, ku, kv, kv
@@ -730,22 +741,21 @@ def resample_into(src_kind, src, valid, levels, reduced, row_offsets, caps, src_
     to compile this kernel the first time, against 9 s serial, for the same speed per core.)"""
     h, w = tgt_h, out.shape[1]
     last = first + out.shape[0]
+    wx, wy, acc, value = np.empty(4), np.empty(4), np.empty(3), np.empty(3)
+    m = k_max * k_max + 1
+    pfs, pxs, pys, pws = np.empty(m, np.int64), np.empty(m), np.empty(m), np.empty(m)
+    tile, scratch = np.empty((TILE, TILE)), _polar_scratch(k_max)
     rates = np.empty((3, 2, w), np.int64)
     for line in range(first, last):
         face, row = line // h, line % h
-        wx, wy, acc, value = np.empty(4), np.empty(4), np.empty(3), np.empty(3)
-        m = k_max * k_max + 1
-        pfs, pxs, pys, pws = np.empty(m, np.int64), np.empty(m), np.empty(m), np.empty(m)
-        tile, scratch = np.empty((TILE, TILE)), _polar_scratch(k_max)
-        if k_max > k:
-            _rate_rows(tgt_kind, tgt_axes, face, row, h, w, k, k_max, rotation, src_kind, src_axes, src_h, src_w,
-                       line == first or row == 0, rates)
+        _rate_rows(tgt_kind, tgt_axes, face, row, h, w, k, k_max, rotation, src_kind, src_axes, src_h, src_w,
+                   line == first or row == 0, rates)
         for col in range(w):
             if not all_valid and tgt_valid[face, row, col] == 0:
                 for c in range(3):
                     out[line - first, col, c] = 0.0
                 continue
-            here = _pixel_rates(rates, tgt_kind, row, col, h, w) if k_max > k else (k, k, k, k, k, k)
+            here = _pixel_rates(rates, tgt_kind, row, col, h, w, k, k_max)
             _pixel(src_kind, src, valid, levels, reduced, row_offsets, caps, src_axes, src_h, src_w, tgt_kind,
                    tgt_axes, face, row, col, h, w, here, rotation, pfs, pxs, pys, pws, wx, wy, value, tile,
                    scratch, acc)
@@ -856,15 +866,14 @@ def footprint_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, c
     rates = np.empty((3, 2, w), np.int64)
     for line in range(first, first + n_lines):
         face, row = line // h, line % h
-        if k_max > k:
-            _rate_rows(tgt_kind, tgt_axes, face, row, h, w, k, k_max, rotation, src_kind, src_axes, src_h, src_w,
-                       line == first or row == 0, rates)
+        _rate_rows(tgt_kind, tgt_axes, face, row, h, w, k, k_max, rotation, src_kind, src_axes, src_h, src_w,
+                   line == first or row == 0, rates)
         for col in range(w):
             p = (line - first) * w + col
             counts[p] = 0
             if not all_valid and tgt_valid[face, row, col] == 0:
                 continue
-            here = _pixel_rates(rates, tgt_kind, row, col, h, w) if k_max > k else (k, k, k, k, k, k)
+            here = _pixel_rates(rates, tgt_kind, row, col, h, w, k, k_max)
             n, wsum = _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, here, rotation, src_kind, src_axes,
                                   src_h, src_w, pfs, pxs, pys, pws)
             scale = 1.0 / wsum

@@ -64,8 +64,8 @@ class Steps:
     y: np.ndarray
     row: np.ndarray  # the pixel centre's source row coordinate (row r's centre at r)
     # The target's rows are the source's (a lat-long, unturned, turned about the vertical or upside down): its
-    # lookups keep their column spacing at any row. Any other target is locally flat, and nearer the pole than a pixel's centre
-    # the same arc between its lookups spans more columns.
+    # lookups keep their column spacing at any row. Any other target is locally flat, and nearer the pole than a
+    # pixel's centre the same arc between its lookups spans more columns.
     rows_aligned: bool = False
 
 
