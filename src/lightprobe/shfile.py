@@ -59,7 +59,7 @@ def versioned_document(text: str | bytes, what: str, fmt: str, version: int, max
     if not isinstance(doc, dict) or doc.get("format") != fmt:
         fail(f"not a {fmt} document")
     if doc.get("version") != version:
-        fail(f"version {str(doc.get('version'))[:20]} is not {version}")
+        fail(f"version {json.dumps(doc.get('version'))[:20]} is not {version}")  # as JSON: one line, escaped
     return doc, fail
 
 
