@@ -1,7 +1,7 @@
 """Energy of a one-pixel sun through every conversion: issue 9's accuracy bar (∫L dω within 0.2 %) measured on
 directions nobody chose, beside the ones the tests pin down.
 
-    python benchmarks/bench_energy.py [--suns 40] [--seed 11]
+    python benchmarks/bench_energy.py [--suns 40] [--seed 11] [--part all|balance]
 
 For each source layout (a 128-row lat-long, 64² cube faces, 128² angular and mirror-ball maps) and each target
 layout at sizes 16, 32 and 64 (unturned), two tables:
@@ -11,8 +11,9 @@ layout at sizes 16, 32 and 64 (unturned), two tables:
 - every pixel: the gain of a sun in each source pixel, relative to the sun's own ∫L dω, for all pixels at once —
   exact, from the conversion's weights (:meth:`lightprobe.envmap.Resampler.energy_gains`). Random suns miss the
   few pixels where a conversion goes wrong (a cube's edges, the rim side of a disc); this table does not.
-Then the every-pixel measure at full size (cube 256–512, discs 1024, targets 256–1024), and what each pixel's own
-subsample rate costs against one rate for the whole map.
+Then the every-pixel measure at full size (cube 256–512, discs 1024, targets 256–1024), what each pixel's own
+subsample rate costs against one rate for the whole map, and what a cube source's texel balance costs
+(:mod:`lightprobe.envmap.balance`: its weights once per size, then one pass over the faces).
 Suns within 25° of a disc's rim direction (where one direction is a ring of pixels) are left out, in the source and
 in the target.
 """
@@ -69,7 +70,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--suns", type=int, default=40)
     parser.add_argument("--seed", type=int, default=11)
+    parser.add_argument("--part", choices=("all", "balance"), default="all",
+                        help="'balance': only the texel balance's cost table")
     args = parser.parse_args()
+    if args.part == "balance":
+        balance_cost()
+        return
     suns = directions(args.suns, args.seed)
     print(f"one-pixel sun (10× the sky's power), {len(suns)} directions ({args.suns} random, 8 at the poles)")
     print(f"  {'source':16s} {'target':8s} {'size':>4s} {'suns':>5s} {'worst':>8s} {'median':>8s}  over 0.2 %")
@@ -91,6 +97,7 @@ def main() -> None:
     every_pixel()
     full_size()
     rate_cost()
+    balance_cost()
 
 
 def kept_percent(resampler: Resampler) -> np.ndarray:
@@ -159,6 +166,46 @@ def rate_cost(rounds: int = 3) -> None:
                 best[mode] = min(best[mode], time.perf_counter() - t0)
         print(f"  {name} {size} → {target} {out_size}".ljust(36) + f"{k:3d} {best['one']:8.3f}s {best['own']:8.3f}s "
               f"{best['own'] / best['one']:5.2f}×")
+
+
+BALANCE_COST = [("cube", 256, "latlong", 512), ("cube", 512, "latlong", 1024), ("cube", 1024, "latlong", 2048),
+                ("cube", 512, "angular", 1024)]
+
+
+def balance_cost(rounds: int = 3) -> None:
+    """A cube source's conversion with its texel balance against the same conversion with the prefilter switched
+    off (best of ``rounds`` alternating runs; the balance's weights are made once per size and kept: their time is
+    its own column)."""
+    import time
+
+    from lightprobe.envmap import balance
+
+    print("\na cube source's texel balance: conversion time with it against without (best of 3, alternating)")
+    print(f"  {'conversion':34s} {'weights':>8s} {'pass':>7s} {'without':>8s} {'with':>8s}  ratio")
+    rng = np.random.default_rng(2)
+    with_balance = balance.prefilter_for
+    for name, size, target, out_size in BALANCE_COST:
+        src_layout, tgt_layout = layout(name), layout(target)
+        env = EnvMap(rng.random(src_layout.grid_shape(size) + (3,)).astype(np.float32), src_layout)
+        balance.balance_of.cache_clear()
+        t0 = time.perf_counter()
+        weights = balance.balance_of(size)
+        made = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        weights.apply(env.data)
+        one_pass = time.perf_counter() - t0
+        best = {"without": math.inf, "with": math.inf}
+        try:
+            for _ in range(rounds):
+                for mode in best:
+                    balance.prefilter_for = with_balance if mode == "with" else (lambda _layout: None)
+                    t0 = time.perf_counter()
+                    resample(env, tgt_layout, out_size)
+                    best[mode] = min(best[mode], time.perf_counter() - t0)
+        finally:
+            balance.prefilter_for = with_balance
+        print(f"  {name} {size} → {target} {out_size}".ljust(36) + f"{made:7.3f}s {one_pass:6.3f}s "
+              f"{best['without']:7.3f}s {best['with']:7.3f}s {best['with'] / best['without']:5.2f}×")
 
 
 if __name__ == "__main__":

@@ -352,9 +352,9 @@ GAIN_CEILINGS = [
     ("sphere", 128, "cube", 32, 0.006),  # was 17 %
     ("sphere", 128, "angular", 64, 0.006),  # was 74 %
     ("latlong", 128, "sphere", 64, 0.004),  # was 4.4 %
-    ("cube", 64, "cube", 64, 0.010),  # was 4.6 % (corner texels)
-    ("cube", 64, "latlong", 64, 0.010),  # was 7.1 % (1.28 % ungraded, no vertex ramp)
-    ("cube", 64, "angular", 64, 0.035),  # was 15.4 % (4.0 % ungraded, no vertex ramp)
+    ("cube", 64, "cube", 64, 0.002),  # was 4.6 % (corner texels; 0.86 % before the texel balance)
+    ("cube", 64, "latlong", 64, 0.002),  # was 7.1 % (1.28 % ungraded, no vertex ramp; 0.77 % unbalanced)
+    ("cube", 64, "angular", 64, 0.025),  # was 15.4 % (4.0 % ungraded, no vertex ramp; 2.8 % unbalanced)
 ]
 
 
@@ -367,7 +367,7 @@ def test_a_sun_in_any_pixel_keeps_its_energy_within_the_measured_ceiling(source,
 
 
 @pytest.mark.parametrize("source, size, target, out_size, share", [
-    ("cube", 64, "latlong", 64, 0.08),  # 18 % with plain cells
+    ("cube", 64, "latlong", 64, 0.0005),  # 18 % with plain cells, 6.6 % graded, 0 balanced
     ("angular", 128, "latlong", 64, 0.001),  # 0.5 %
     ("angular", 128, "cube", 32, 0.005),  # 2.0 %
     ("sphere", 128, "cube", 32, 0.01),  # 4.5 %
@@ -405,20 +405,21 @@ def test_a_turned_cube_keeps_the_energy_of_its_vertex_texels():
     from lightprobe.frames import rotation_from_ypr
 
     turned = _kept_gains("cube", 64, "cube", 64, rotation_from_ypr(30, 20, 10))
-    assert turned.max() < 0.012, f"{100 * turned.max():.3f} %"
-    assert _kept_gains("cube", 64, "cube", 64).max() < 0.009
+    assert turned.max() < 0.008, f"{100 * turned.max():.3f} %"  # 0.57 % with the texel balance, 1.1 % before
+    assert _kept_gains("cube", 64, "cube", 64).max() < 0.002
 
 
-@pytest.mark.xfail(strict=True, reason="cube, angular and mirror-ball sources: a one-pixel sun off by up to 0.24–3.4 % "
+@pytest.mark.xfail(strict=True, reason="cube, angular and mirror-ball sources: a one-pixel sun off by up to 0.24–2.4 % "
                                        "in some pixels (benchmarks/bench_energy.py, every pixel)")
 @pytest.mark.parametrize("source, target", [("cube", "latlong"), ("cube", "angular"), ("angular", "latlong"),
                                             ("sphere", "latlong")])
 def test_a_sun_in_any_pixel_of_any_source_keeps_its_energy(source, target):
     """The known remainder of issue 9's bar (strict: the day it passes, the mark must go): a sun in any pixel of
-    any source within 0.2 %. Lat-long sources hold it into lat-long and cube targets; from cube, angular and
-    mirror-ball sources some pixels do not (a cube's edge texels, where the area per texel folds: ~0.6 % at 64
-    texels a side, falling as 1/N; its corner texels, read across a jump where three faces meet, into targets
-    coarser than the cube; what graded cells leave where the per-pixel rate steps)."""
+    any source within 0.2 %. Lat-long sources hold it into lat-long and cube targets, and so does a cube of 64 into
+    a cube or a lat-long of its size (tests/test_balance.py); from cube, angular and mirror-ball sources into
+    coarser targets some pixels do not (a cube's corner texels, read across a jump where three faces meet: 2.4 %
+    into a lat-long of 32 rows, 1.8 % into an angular map of 32; what graded cells leave where the per-pixel rate
+    steps: 0.24–0.42 % from discs)."""
     size = {"cube": 64}.get(source, 128)
     worst = _kept_gains(source, size, target, 32).max()
     assert worst < 2e-3, f"{100 * worst:.3f} %"

@@ -109,32 +109,37 @@ class Layout(ABC):
         return face, u * w - 0.5, v * h - 0.5
 
     # ---- lookup -------------------------------------------------------------------------------------------------
-    def padded(self, data: np.ndarray, pad: int = PAD) -> tuple[np.ndarray, np.ndarray]:
+    def padded(self, data: np.ndarray, pad: int = PAD, prefilter=None) -> tuple[np.ndarray, np.ndarray]:
         """``data`` with a border of ``pad`` texels taken from across its seams and poles, and a validity mask.
 
         Returns ``(img, valid)`` of shapes (F, H+2p, W+2p, C) and (F, H+2p, W+2p), float32. The border texel at
         extended coordinates (u, v) holds the pixel nearest to the direction ``uv_to_dir(u, v)``: this works for any
         layout whose formulas extend past the face edge (latlong: past a pole is the ring at azimuth + π; cube: the
-        next face), so bilinear and cubic lookups are seamless without knowing the layout."""
+        next face), so bilinear and cubic lookups are seamless without knowing the layout. ``prefilter(faces)``, if
+        given, rewrites the (F, H, W, C) interior in place before the border copies it (a cube's texel balance)."""
         grid = data.shape[:-1]
         faces = data.reshape((self.faces,) + grid[-2:] + data.shape[-1:])
         h, w = grid[-2:]
         img = np.empty((self.faces, h + 2 * pad, w + 2 * pad, data.shape[-1]), dtype=np.float32)
-        img[:, pad:pad + h, pad:pad + w] = faces  # interior texels are themselves, exactly
+        interior = img[:, pad:pad + h, pad:pad + w]
+        interior[...] = faces  # interior texels are themselves, exactly (unless prefiltered)
+        if prefilter is not None:
+            prefilter(interior)
         valid = np.empty(img.shape[:-1], dtype=np.float32)
         valid[:, pad:pad + h, pad:pad + w] = self.valid_mask(grid).reshape((self.faces, h, w))
         border, (face, row, col) = _padding_index(self, grid, pad)
-        img[border] = faces[face, row, col]
+        img[border] = interior[face, row, col]
         valid[border] = self.valid_mask(grid).reshape((self.faces, h, w))[face, row, col]
         return img, valid
 
-    def sampler(self, data: np.ndarray, kernel: str = "bilinear"):
+    def sampler(self, data: np.ndarray, kernel: str = "bilinear", prefilter=None):
         """A function ``d (..., 3) → values (..., C)``: lookup of ``data`` (``grid + (C,)``) at world directions,
-        seam- and pole-correct. ``kernel``: ``bilinear``, or ``bspline`` (cubic B-spline, for resampling)."""
+        seam- and pole-correct. ``kernel``: ``bilinear``, or ``bspline`` (cubic B-spline, for resampling);
+        ``prefilter``: as :meth:`padded`'s."""
         from .kernels import gather  # numba is imported when a lookup is first built, not with the package
 
         grid = data.shape[:-1]
-        img, valid = self.padded(data, PAD)
+        img, valid = self.padded(data, PAD, prefilter)
 
         def lookup(d: np.ndarray) -> np.ndarray:
             face, x, y = self.pixel_coords(d, grid)
@@ -283,9 +288,11 @@ class _DiscLayout(Layout):
         shrink = np.where(r > 1.0, 1.0 / np.maximum(r, 1e-300), 1.0)
         return a * shrink, b * shrink
 
-    def padded(self, data, pad=PAD):
+    def padded(self, data, pad=PAD, prefilter=None):
         # nothing lies beyond a disc's rim: zero border with zero validity
         img = np.pad(data.astype(np.float32), ((pad, pad), (pad, pad), (0, 0)))[None]
+        if prefilter is not None:
+            prefilter(img[:, pad:-pad, pad:-pad])
         valid = np.pad(self.valid_mask(data.shape[:2]).astype(np.float32), pad)[None]
         return img, valid
 
@@ -629,9 +636,9 @@ class Cross(Layout):
         out[rows, cols] = faces
         return out
 
-    def sampler(self, data, kernel="bilinear"):
+    def sampler(self, data, kernel="bilinear", prefilter=None):
         # looked up through its cube faces: the rearrangement is exact and the cube's padding is seamless
-        return CUBE.sampler(self.to_cube(data), kernel)
+        return CUBE.sampler(self.to_cube(data), kernel, prefilter)
 
 
 @lru_cache(maxsize=16)

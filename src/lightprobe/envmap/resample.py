@@ -13,7 +13,7 @@ from ..layouts import CUBE, Cross, Layout
 from .. import limits
 from ..limits import check_memory, check_pixels
 from ..progress import track
-from . import cube_symmetry, fused, polar, pole_rows, separable
+from . import balance, cube_symmetry, fused, polar, pole_rows, separable
 from .map import EnvMap, owned, pixel_directions, pixel_solid_angles
 
 _CHUNK_SAMPLES = 1 << 18  # direction lookups per chunk of a resampling pass (bounds memory to ~100 MB)
@@ -288,7 +288,7 @@ def _plan(source: EnvMap, target: Layout, size: int | None, rotation, samples: i
         if reduce_poles:
             reduction = polar.reduced_rows(img[0], polar.polar_levels(steps, source.grid, k))
     else:
-        img, valid = source.layout.padded(source.data)
+        img, valid = source.layout.padded(source.data, prefilter=balance.prefilter_for(source.layout))
         if source.all_valid:  # a cube's padding is valid everywhere: no table of ones for the kernel to read
             valid = np.ones((1, 1, 1), dtype=np.float32)
     all_valid = filled.valid_fraction == 1.0  # latlong, cube: no per-pixel mask
@@ -434,6 +434,8 @@ class Resampler:
                 delivered = _separable_delivery(self._separable, omega_t)
             else:
                 delivered = _taps_delivery(self, layout, grid, omega_t.reshape(-1))
+                if balance.prefilter_for(layout) is not None:  # the taps weigh balanced texels: a sun's own share
+                    delivered = balance.delivered_to_texels(delivered.reshape(grid))
             with np.errstate(invalid="ignore", divide="ignore"):
                 gains = np.where(omega_s > 0, delivered.reshape(grid) / omega_s - 1.0, np.nan)
         if rim_margin is not None:
@@ -453,6 +455,8 @@ class Resampler:
         if self.offsets is None:
             return resample(env, self.target, self.size, rotation=self.rotation, samples=self.samples)
         data = self.layout.to_cube(env.data) if isinstance(self.layout, Cross) else env.data
+        if balance.prefilter_for(self.layout) is not None:  # the taps read a cube's balanced texels, as resample
+            data = balance.balanced_faces(np.asarray(data, dtype=np.float32))
         reduced = (polar.no_reduction()[1] if self._levels is None
                    else polar.reduced_rows(np.asarray(data), self._levels)[1])
         src = np.ascontiguousarray(data).reshape(-1, 3)
@@ -484,7 +488,7 @@ def reference_resample(source: EnvMap, target: Layout, grid: tuple[int, ...], k:
     compiled kernel is tested against, and the path for layouts it does not know. Its lookups are the layout's
     plain B-spline: near a lat-long source's poles it lacks the kernel's rational row weights (the tests compare the
     two on sources under :data:`lightprobe.envmap.pole_rows.MIN_HEIGHT` rows, where the kernel has none either)."""
-    lookup = source.layout.sampler(source.data, "bspline")
+    lookup = source.layout.sampler(source.data, "bspline", balance.prefilter_for(source.layout))
     sub = (np.arange(k) + 0.5) / k
     h, w = grid[-2:]
     index = [a.ravel() for a in np.indices(grid)]
