@@ -215,8 +215,10 @@ def _every_pixel_gains() -> dict[str, tuple[float, float]]:
 
 def _gain_pictures(rep: Report) -> str:
     """Heat maps of |gain| over the source's pixels: a mirror ball into an angular map at one rate for the whole
-    map (as before) and at each pixel's own, and a cube into a lat-long (what is left)."""
-    from .envmap import Resampler
+    map (as before) and at each pixel's own, a cube into a lat-long (what is left), and what a cube's texel balance
+    removes."""
+    from .envmap import Resampler, balance
+    from .envmap.map import pixel_solid_angles
     from .envmap.resample import supersampling
     from .layouts import layout
 
@@ -226,6 +228,7 @@ def _gain_pictures(rep: Report) -> str:
     own_rate = Resampler(ball, ball.grid_shape(128), angular, 64).energy_gains(rim_margin=25.0)
     cube_gains = Resampler(cube, cube.grid_shape(64), latlong, 64).energy_gains()
     strip = np.concatenate(list(cube_gains), axis=1)  # the six faces side by side, as a cube file is
+    surplus = balance.face_texel_integrals(64) / pixel_solid_angles(cube, cube.grid_shape(64))[0] - 1
     scale = "black 0, white 1 % or more; grey: no sphere, or within 25° of a rim direction"
     return (rep.display_picture("energy_ball_one_rate", heatmap(np.abs(one_rate), 0.01),
                                 f"mirror ball 128 → angular 64, one rate k = {k}: |gain| of a sun in each pixel "
@@ -236,7 +239,12 @@ def _gain_pictures(rep: Report) -> str:
                                   "cube 64 → lat-long 64, faces +X −X +Y −Y +Z −Z, through the texel balance: what "
                                   "is left, faint rings where a target pixel's rate differs from its neighbours' "
                                   "(black 0, white 0.2 % or more; before the balance the edge texels were 0.5–0.8 %)",
-                                  width=768))
+                                  width=768)
+            + rep.display_picture("energy_cube_surplus", heatmap(np.abs(surplus), 0.008),
+                                  "what the balance removes: one face of a 64-texel cube, each texel's B-spline "
+                                  "integral against its solid angle, whatever the target (black 0, white 0.8 %): "
+                                  "the edges (the density's kink), dots along the second row (the padding copying "
+                                  "the next face's nearest texel), a faint centre (−0.07 %)", width=256))
 
 
 def _one_pixel_sun(grid: tuple[int, int], d: np.ndarray) -> EnvMap:

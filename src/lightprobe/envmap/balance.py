@@ -100,7 +100,7 @@ def face_texel_integrals(n: int) -> np.ndarray:
     per_slot = face_integrals(n)
     out = per_slot[PAD:PAD + n, PAD:PAD + n].copy()  # each texel's spline on its own face
     border, (face, row, col) = _padding_index(CUBE, (6, n, n), PAD)
-    slot_face, slot_row, slot_col = np.nonzero(border)  # the border's slots, in the index's order
+    _, slot_row, slot_col = np.nonzero(border)  # the border's slots, in the index's order
     mine = face == 0  # the copies of face 0's texels, on whichever face's border they sit
     np.add.at(out, (row[mine], col[mine]), per_slot[slot_row[mine], slot_col[mine]])
     return out
@@ -127,16 +127,6 @@ def _integrals_after(integrals: np.ndarray, up: np.ndarray, down: np.ndarray) ->
     return out
 
 
-def _blended(face: np.ndarray, up: np.ndarray, down: np.ndarray) -> np.ndarray:
-    """The blends along the second axis of one face's values (n, n, C) float32; a new array. Written on the
-    differences of neighbours, so equal values stay exactly equal (a uniform map uniform to the bit)."""
-    step = face[:, 1:] - face[:, :-1]
-    out = face.copy()
-    out[:, :-1] += up[:, :-1, None] * step
-    out[:, 1:] -= down[:, 1:, None] * step
-    return out
-
-
 @dataclass(frozen=True)
 class Balance:
     """A cube size's texel balance (:func:`balance_of`): blends along each face's rows (neighbours left and
@@ -151,17 +141,13 @@ class Balance:
 
     def apply(self, faces: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """Balanced values of cube faces (6, n, n, C) float32 (radiance in, radiance out; the frame and layout
-        untouched), into ``out`` (may be ``faces`` itself): per face the column blends, then the row blends —
-        compiled (:func:`_blend_face`) from :data:`_COMPILE_FROM` texels, numpy under it (the same arithmetic)."""
+        untouched), into ``out`` (may be ``faces`` itself): per face the column blends into a scratch face, then
+        the row blends from it (:func:`_blend_pass`; numba is loaded already wherever a cube is resampled)."""
         out = np.empty_like(faces) if out is None else out
-        if faces.shape[0] * faces.shape[1] * faces.shape[2] < _COMPILE_FROM:
-            for f in range(faces.shape[0]):
-                columns = _blended(faces[f].transpose(1, 0, 2), self.column_up.T, self.column_down.T)
-                out[f] = _blended(columns.transpose(1, 0, 2), self.row_up, self.row_down)
-            return out
         scratch = np.empty(faces.shape[1:], np.float32)
         for f in range(faces.shape[0]):
-            _blend_face(faces[f], self.column_up, self.column_down, self.row_up, self.row_down, scratch, out[f])
+            _blend_pass(faces[f], self.column_up, self.column_down, 1, 0, scratch)
+            _blend_pass(scratch, self.row_up, self.row_down, 0, 1, out[f])
         return out
 
     def delivered(self, per_texel: np.ndarray) -> np.ndarray:
@@ -172,33 +158,23 @@ class Balance:
                                 self.column_down.T).transpose(0, 2, 1)
 
 
-_COMPILE_FROM = 1 << 16  # texels from which the compiled pass serves (under it numpy, and numba stays unloaded)
-
-
 @njit(cache=True, nogil=True, error_model="numpy")
-def _blend_face(face, column_up, column_down, row_up, row_down, scratch, out):  # pragma: no cover - compiled
-    """One face (n, n, C) float32: the blends along its columns (every weight indexed [row, column]) into
-    ``scratch``, then along its rows into ``out`` (which may be ``face``): c + up (c_next − c) + down (c_prev − c)."""
+def _blend_pass(face, up, down, dr, dc, out):  # pragma: no cover - compiled
+    """One pass over a face (n, n, C) float32 into ``out`` (not ``face``): each texel blended with its neighbours a
+    step (dr, dc) on and back, c + up (c_next − c) − down (c − c_prev), weights indexed [row, column] — written on
+    the differences of neighbours, so equal values stay exactly equal (a uniform map uniform to the bit)."""
     n, channels = face.shape[0], face.shape[2]
     for r in range(n):
         for c in range(n):
+            ahead = r + dr < n and c + dc < n
+            behind = r - dr >= 0 and c - dc >= 0
             for k in range(channels):
                 v = face[r, c, k]
                 x = v
-                if r + 1 < n:
-                    x += column_up[r, c] * (face[r + 1, c, k] - v)
-                if r > 0:
-                    x -= column_down[r, c] * (v - face[r - 1, c, k])
-                scratch[r, c, k] = x
-    for r in range(n):
-        for c in range(n):
-            for k in range(channels):
-                v = scratch[r, c, k]
-                x = v
-                if c + 1 < n:
-                    x += row_up[r, c] * (scratch[r, c + 1, k] - v)
-                if c > 0:
-                    x -= row_down[r, c] * (v - scratch[r, c - 1, k])
+                if ahead:
+                    x += up[r, c] * (face[r + dr, c + dc, k] - v)
+                if behind:
+                    x -= down[r, c] * (v - face[r - dr, c - dc, k])
                 out[r, c, k] = x
 
 
@@ -217,13 +193,10 @@ def balance_of(n: int) -> Balance | None:
     return Balance(row_up, row_down, np.ascontiguousarray(column_up.T), np.ascontiguousarray(column_down.T))
 
 
-def balanced_faces(faces: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-    """Cube faces (6, n, n, C) float32 balanced (a new array, or ``out``); the same array for cubes under
-    :data:`MIN_SIZE`."""
+def balanced_faces(faces: np.ndarray) -> np.ndarray:
+    """Cube faces (6, n, n, C) float32 balanced, a new array (the same array for cubes under :data:`MIN_SIZE`)."""
     balance = balance_of(faces.shape[-2])
-    if balance is None:
-        return faces if out is None else np.copyto(out, faces) or out
-    return balance.apply(faces, out)
+    return faces if balance is None else balance.apply(faces)
 
 
 def delivered_to_texels(per_texel: np.ndarray) -> np.ndarray:
