@@ -47,7 +47,8 @@ def run(args) -> None:
     out_pixels = check_size(target, args.size or target.default_size(header.pixels))
     streamed = args.dst.suffix.lower() in HDR_WRITE_FORMATS
     writing = HDR_WRITE_BYTES if streamed else out_pixels * LDR_WRITE_BYTES_PER_PIXEL
-    env = load(args.src, args.layout, extra_bytes=resample_memory(header.pixels, out_pixels, target) + writing,
+    source = layout_named(args.layout) if args.layout else _detected(header)
+    env = load(args.src, args.layout, extra_bytes=resample_memory(header.pixels, out_pixels, target, source) + writing,
                kernels=True,
                what=f"converting {args.src} ({header.width}×{header.height}) to {args.to} ({out_pixels} pixels)")
     size = args.size or target.default_size(env.valid_pixels)
@@ -58,3 +59,15 @@ def run(args) -> None:
         out = resample(env, target, size, rotation=rotation)
         out.save(args.dst, exposure=args.exposure, curve=args.curve, inputs=[args.src])
     print(f"wrote {args.dst} ({args.to}, size {size})")
+
+
+def _detected(header):
+    """The source's layout as its aspect ratio says, for the memory estimate (None where it cannot tell: the read
+    that follows says why)."""
+    from ..errors import LayoutError
+    from ..layouts import detect_layout
+
+    try:
+        return detect_layout(header.width, header.height)
+    except LayoutError:
+        return None

@@ -858,7 +858,6 @@ def footprint_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, c
     reduced rows (:func:`apply_taps` reads it there)."""
     h, w = tgt_h, tgt_w
     n_lines = counts.shape[0] // w
-    tiled = src_kind == LATLONG or src_kind == CUBE
     m = k_max * k_max + 1
     pfs, pxs, pys, pws = np.empty(m, np.int64), np.empty(m), np.empty(m), np.empty(m)
     tile, scratch = np.empty((TILE, TILE)), _polar_scratch(k_max)
@@ -871,22 +870,60 @@ def footprint_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, c
         for col in range(w):
             p = (line - first) * w + col
             counts[p] = 0
+            if all_valid or tgt_valid[face, row, col] != 0:
+                counts[p] = _pixel_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, caps, src_axes,
+                                        src_h, src_w, tgt_kind, tgt_axes, h, w, k, k_max, rotation, face, row, col,
+                                        rates, pfs, pxs, pys, pws, tile, scratch, wx, wy, idx[p], wts[p])
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})
+def footprint_delivery(src_kind, src_shape, valid, index_map, levels, row_offsets, caps, src_axes, src_h, src_w,
+                       tgt_kind, tgt_axes, tgt_h, tgt_w, tgt_valid, all_valid, k, k_max, rotation, first, last,
+                       omega_t, max_taps, total):  # pragma: no cover - compiled
+    """Σ_t Ω_t W_ts over target lines ``first`` … ``last − 1``, added into ``total`` (float64, indexed as
+    :func:`footprint_taps`'s taps): each target pixel's taps, weighted by its solid angle ``omega_t`` (flat over
+    the target's lines) — the energy a sun in every source pixel at once takes there, without listing the taps."""
+    h, w = tgt_h, tgt_w
+    m = k_max * k_max + 1
+    pfs, pxs, pys, pws = np.empty(m, np.int64), np.empty(m), np.empty(m), np.empty(m)
+    tile, scratch = np.empty((TILE, TILE)), _polar_scratch(k_max)
+    wx, wy = np.empty(4), np.empty(4)
+    rates = np.empty((3, 2, w), np.int64)
+    idx, wts = np.empty(max_taps, np.int32), np.empty(max_taps, np.float32)
+    for line in range(first, last):
+        face, row = line // h, line % h
+        _rate_rows(tgt_kind, tgt_axes, face, row, h, w, k, k_max, rotation, src_kind, src_axes, src_h, src_w,
+                   line == first or row == 0, rates)
+        for col in range(w):
             if not all_valid and tgt_valid[face, row, col] == 0:
                 continue
-            here = _pixel_rates(rates, tgt_kind, row, col, h, w, k, k_max)
-            n, wsum = _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, here, rotation, src_kind, src_axes,
-                                  src_h, src_w, pfs, pxs, pys, pws)
-            scale = 1.0 / wsum
-            t = -1
-            if tiled and _same_face(pfs, n):
-                t = _tile_taps(src_kind, src_shape, index_map, levels, row_offsets, caps, src_h, src_w, pfs, pxs,
-                               pys, pws, n, scale, scratch, tile, idx[p], wts[p])
-            if t < 0:
-                t = 0
-                for s in range(n):  # subsample by subsample, as _lookup does
-                    t = _lookup_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, src_h, src_w,
-                                     pfs[s], pxs[s], pys[s], pws[s] * scale, wx, wy, idx[p], wts[p], t)
-            counts[p] = t
+            t = _pixel_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, caps, src_axes, src_h,
+                            src_w, tgt_kind, tgt_axes, h, w, k, k_max, rotation, face, row, col, rates, pfs, pxs,
+                            pys, pws, tile, scratch, wx, wy, idx, wts)
+            o = omega_t[line * w + col]
+            for j in range(t):
+                total[idx[j]] += o * wts[j]
+
+
+@njit(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})
+def _pixel_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, caps, src_axes, src_h, src_w, tgt_kind,
+                tgt_axes, h, w, k, k_max, rotation, face, row, col, rates, pfs, pxs, pys, pws, tile, scratch, wx, wy,
+                idx, wts):  # pragma: no cover - compiled
+    """One target pixel's taps into ``idx``/``wts`` (its row of the rates already in ``rates``); returns how many."""
+    here = _pixel_rates(rates, tgt_kind, row, col, h, w, k, k_max)
+    n, wsum = _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, here, rotation, src_kind, src_axes,
+                          src_h, src_w, pfs, pxs, pys, pws)
+    scale = 1.0 / wsum
+    t = -1
+    if (src_kind == LATLONG or src_kind == CUBE) and _same_face(pfs, n):
+        t = _tile_taps(src_kind, src_shape, index_map, levels, row_offsets, caps, src_h, src_w, pfs, pxs,
+                       pys, pws, n, scale, scratch, tile, idx, wts)
+    if t < 0:
+        t = 0
+        for s in range(n):  # subsample by subsample, as _lookup does
+            t = _lookup_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, src_h, src_w,
+                             pfs[s], pxs[s], pys[s], pws[s] * scale, wx, wy, idx, wts, t)
+    return t
 
 
 @njit(cache=True, inline="always", error_model="numpy")

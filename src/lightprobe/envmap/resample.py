@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import math
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -13,7 +14,7 @@ from ..layouts import CUBE, Cross, Layout
 from .. import limits
 from ..limits import check_memory, check_pixels
 from ..progress import track
-from . import balance, cube_symmetry, fused, polar, pole_rows, separable
+from . import balance, cube_symmetry, flux, fused, polar, pole_rows, separable
 from .map import EnvMap, owned, pixel_directions, pixel_solid_angles
 
 _CHUNK_SAMPLES = 1 << 18  # direction lookups per chunk of a resampling pass (bounds memory to ~100 MB)
@@ -134,8 +135,8 @@ def _prepared(source: EnvMap, target: Layout, size: int | None, samples: int | N
     measured steps it was chosen from."""
     size = size or target.default_size(source.valid_pixels)
     pixels = check_size(target, size)
-    check_memory(resample_memory(math.prod(source.grid), pixels, target), f"resampling to {target.name} size {size}",
-                 kernels=True)
+    check_memory(resample_memory(math.prod(source.grid), pixels, target, source.layout),
+                 f"resampling to {target.name} size {size}", kernels=True)
     grid = target.grid_shape(size)
     if isinstance(source.layout, Cross):  # exact rearrangement; the cube has a seamless padding
         source = EnvMap(source.layout.to_cube(source.data), CUBE)
@@ -288,13 +289,21 @@ def _plan(source: EnvMap, target: Layout, size: int | None, rotation, samples: i
         if reduce_poles:
             reduction = polar.reduced_rows(img[0], polar.polar_levels(steps, source.grid, k))
     else:
-        img, valid = source.layout.padded(source.data, prefilter=balance.prefilter_for(source.layout))
+        data = source.data
+        k_max = _k_max(source, filled, k, samples)
+        corrected = _flux_stencil(source.layout, source.grid, target, grid, rotation, samples, (k, k_max),
+                                  lambda omega_t: delivered(_Taps(source.layout, source.grid, filled,
+                                                                  filled.size_of(grid), k, k_max, steps, rotation),
+                                                            source.grid, omega_t))
+        if corrected is not None:
+            data = corrected.apply(data.reshape((-1,) + source.grid[-2:] + (3,))).reshape(data.shape)
+        img, valid = source.layout.padded(data, prefilter=balance.prefilter_for(source.layout))
         if source.all_valid:  # a cube's padding is valid everywhere: no table of ones for the kernel to read
             valid = np.ones((1, 1, 1), dtype=np.float32)
     all_valid = filled.valid_fraction == 1.0  # latlong, cube: no per-pixel mask
     tgt_valid = (np.ones((1, 1, 1), dtype=np.uint8) if all_valid
                  else filled.valid_mask(grid).reshape(faces).astype(np.uint8))
-    k_max = adaptive_rate(source.layout, filled, k) if samples is None else k
+    k_max = _k_max(source, filled, k, samples)
     args = (src_kind, img, valid, *reduction, _axes(source.layout), source.grid[-2], source.grid[-1],
             fused.CODES[filled.name], _axes(filled), faces[1], tgt_valid, all_valid, k, k_max, turn)
     by_symmetry = (symmetric and src_kind == fused.LATLONG and filled.name == "cube"
@@ -304,6 +313,10 @@ def _plan(source: EnvMap, target: Layout, size: int | None, rotation, samples: i
     if reduce_poles and separable.applies(source.layout, filled, rotation):
         by_rows = (separable.Separable(source.grid, grid[-2:], k, rotation), source.data)
     return _Plan(target, filled, grid, faces[1], args, cube_rows, by_rows)
+
+
+def _k_max(source: EnvMap, filled: Layout, k: int, samples: int | None) -> int:
+    return adaptive_rate(source.layout, filled, k) if samples is None else k
 
 
 def _fused_resample(source: EnvMap, target: Layout, grid: tuple[int, ...], k: int,
@@ -343,7 +356,7 @@ class Resampler:
         check_size(target, self.size)
         out_grid = target.grid_shape(self.size)
         ratio = pixels / max(_valid_pixels(target, out_grid), 1)  # as resample's _valid_ratio measures it
-        self.offsets = None
+        self.offsets, self._flux = None, None
         if (samples is None and ratio > MAX_FOOTPRINT_RATIO) or fused.CODES.get(source_layout.name) is None \
                 or fused.CODES.get(_face_layout(target).name) is None:
             return  # not cached: __call__ resamples directly
@@ -362,57 +375,35 @@ class Resampler:
         if separable.applies(source_layout, filled, self.rotation):  # as resample does it
             self._separable = separable.Separable(tuple(source_grid), tuple(out_grid[-2:]), k, self.rotation)
             return
-        grid = filled.grid_shape(self.target.size_of(out_grid))
-        faces = grid if filled.faces > 1 else (1,) + grid
-        lines, w = faces[0] * faces[1], faces[2]
-        max_taps = max(TILE_TAPS, 16 * (k_max * k_max + 1))
-        band = max(1, min(16, TAPS_SCRATCH_BYTES // (w * max_taps * 8)))  # lines a thread lists at a time
-        check_memory(lines * w * (25 * 8 + 8) + limits.threads() * band * w * max_taps * 8,
+        taps = _Taps(source_layout, tuple(source_grid), self.target, self.size, k, k_max, steps, self.rotation)
+        check_memory(taps.lines * taps.width * (25 * 8 + 8) + taps.scratch_bytes,
                      f"footprint weights of {self.layout.name} → {self.target.name} size {self.size}", kernels=True)
-        src_kind = fused.CODES[source_layout.name]
-        self._levels = None  # a latlong source's polar reduction levels, when it has any
-        levels, _, row_offsets, caps = polar.no_reduction(source_grid[-2])
-        if src_kind == fused.LATLONG:
-            src_shape, valid = (1,) + tuple(source_grid) + (3,), np.ones((1, 1, 1), np.float32)
-            index_map = np.zeros((1, 1, 1), np.int32)
-            found = polar.polar_levels(steps, tuple(source_grid), k)
-            if found.any():  # where the reduced rows go (their values come with each map)
-                self._levels = found
-                levels = polar.kernel_levels(found, source_grid[-1])
-                row_offsets, caps, _ = polar.row_layout(levels, source_grid[-1])
-        else:
-            flat = np.arange(math.prod(source_grid), dtype=np.int32).reshape(source_grid)[..., None]
-            padded_index, valid = source_layout.padded(flat.astype(np.float64))  # padding is exact for integers
-            index_map = np.rint(padded_index[..., 0]).astype(np.int32)
-            src_shape = padded_index.shape
-            if source_layout.valid_fraction == 1.0:
-                valid = np.ones((1, 1, 1), np.float32)
-        all_valid = filled.valid_fraction == 1.0
-        tgt_valid = (np.ones((1, 1, 1), np.uint8) if all_valid
-                     else filled.valid_mask(grid).reshape(faces).astype(np.uint8))
-        turn = np.eye(3) if self.rotation is None else np.asarray(self.rotation, dtype=np.float64)
-        parts = []
+        self._levels = taps.found_levels
 
-        def taps(first: int):
-            n = min(band, lines - first)
-            idx, wts = np.empty((n * w, max_taps), np.int32), np.empty((n * w, max_taps), np.float32)
-            counts = np.empty(n * w, np.int64)
-            fused.footprint_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, caps,
-                                 _axes(source_layout), source_grid[-2], source_grid[-1], fused.CODES[filled.name],
-                                 _axes(filled), faces[1], w, tgt_valid, all_valid, k, k_max, turn, first, idx, wts,
-                                 counts)
-            keep = np.arange(max_taps)[None, :] < counts[:, None]
+        def listed(first: int):
+            counts, idx, wts = taps.band(first)
+            keep = np.arange(idx.shape[1])[None, :] < counts[:, None]
             return counts, idx[keep], wts[keep]
 
         with ThreadPoolExecutor(limits.threads()) as pool:
-            parts = list(track(pool.map(taps, range(0, lines, band)), f"footprint weights for {self.target.name}",
-                               total=-(-lines // band)))
+            parts = list(track(pool.map(listed, taps.firsts), f"footprint weights for {self.target.name}",
+                               total=len(taps.firsts)))
         counts = np.concatenate([c for c, _, _ in parts])
         self.offsets = np.zeros(len(counts) + 1, np.int64)
         np.cumsum(counts, out=self.offsets[1:])
         self.idx = np.concatenate([i for _, i, _ in parts])
         self.wts = np.concatenate([q for _, _, q in parts])
-        self._filled_grid, self._lines = grid, (lines, w)
+        self._filled_grid, self._lines = taps.grid, (taps.lines, taps.width)
+        self._flux = _flux_stencil(source_layout, tuple(source_grid), self.target, taps.grid, self.rotation,
+                                   self.samples, (k, k_max), lambda omega_t: _taps_delivery(self, source_layout,
+                                                                                tuple(source_grid), omega_t))
+
+    def without_flux_correction(self) -> Resampler:
+        """This conversion as it would be without its flux correction (:mod:`lightprobe.envmap.flux`): what the
+        correction removes, for pictures and tests. Shares the weights."""
+        plain = copy.copy(self)
+        plain._flux = None
+        return plain
 
     def energy_gains(self, rim_margin: float | None = None) -> np.ndarray:
         """For every source pixel, the relative error of ∫L dω that a sun wholly in that pixel takes through this
@@ -436,6 +427,8 @@ class Resampler:
                 delivered = _taps_delivery(self, layout, grid, omega_t.reshape(-1))
                 if balance.prefilter_for(layout) is not None:  # the taps weigh balanced texels: a sun's own share
                     delivered = balance.delivered_to_texels(delivered.reshape(grid))
+                if self._flux is not None:  # ... and the balance reads the flux-corrected pixels
+                    delivered = self._flux.delivered(delivered.reshape((-1,) + grid[-2:]))
             with np.errstate(invalid="ignore", divide="ignore"):
                 gains = np.where(omega_s > 0, delivered.reshape(grid) / omega_s - 1.0, np.nan)
         if rim_margin is not None:
@@ -455,6 +448,9 @@ class Resampler:
         if self.offsets is None:
             return resample(env, self.target, self.size, rotation=self.rotation, samples=self.samples)
         data = self.layout.to_cube(env.data) if isinstance(self.layout, Cross) else env.data
+        if self._flux is not None:  # as resample: the flux correction, then the balance
+            shape = np.shape(data)
+            data = self._flux.apply(np.reshape(data, (-1,) + shape[-3:-1] + (3,))).reshape(shape)
         if balance.prefilter_for(self.layout) is not None:  # the taps read a cube's balanced texels, as resample
             data = balance.balanced_faces(np.asarray(data, dtype=np.float32))
         reduced = (polar.no_reduction()[1] if self._levels is None
@@ -472,6 +468,134 @@ class Resampler:
         if isinstance(self.target, Cross):
             out = self.target.from_cube(out)
         return EnvMap(owned(out), self.target)
+
+
+class _Taps:
+    """The footprint taps of a conversion, listed a band of target lines at a time by the compiled kernel
+    (:func:`lightprobe.envmap.fused.footprint_taps`): what a :class:`Resampler` stores, and what :func:`delivered`
+    reads without storing. ``band(first)`` → (counts (n·W,), idx, wts (n·W, max_taps)) for lines first … first+n−1;
+    tap indices are flat source pixels (as the kernel reads them: a cube's balanced texels), then reduced polar rows."""
+
+    def __init__(self, source_layout: Layout, source_grid: tuple[int, ...], target: Layout, size: int, k: int,
+                 k_max: int, steps: polar.Steps, rotation):
+        filled = _face_layout(target)
+        self.grid = grid = filled.grid_shape(size)
+        faces = grid if filled.faces > 1 else (1,) + grid
+        self.lines, self.width = faces[0] * faces[1], faces[2]
+        self.max_taps = max(TILE_TAPS, 16 * (k_max * k_max + 1))
+        band = max(1, min(16, TAPS_SCRATCH_BYTES // (self.width * self.max_taps * 8)))  # lines a thread lists
+        self.firsts = range(0, self.lines, band)
+        self.band_lines = band
+        self.scratch_bytes = limits.threads() * band * self.width * self.max_taps * 8
+        src_kind = fused.CODES[source_layout.name]
+        self.found_levels = None  # a latlong source's polar reduction levels, when it has any
+        self.reduced_size = 0  # their reduced pixels (taps past the source's own)
+        levels, _, row_offsets, caps = polar.no_reduction(source_grid[-2])
+        if src_kind == fused.LATLONG:
+            src_shape, valid = (1,) + tuple(source_grid) + (3,), np.ones((1, 1, 1), np.float32)
+            index_map = np.zeros((1, 1, 1), np.int32)
+            found = polar.polar_levels(steps, tuple(source_grid), k)
+            if found.any():  # where the reduced rows go (their values come with each map)
+                self.found_levels = found
+                levels = polar.kernel_levels(found, source_grid[-1])
+                row_offsets, caps, self.reduced_size = polar.row_layout(levels, source_grid[-1])
+        else:
+            flat = np.arange(math.prod(source_grid), dtype=np.int32).reshape(source_grid)[..., None]
+            padded_index, valid = source_layout.padded(flat.astype(np.float64))  # padding is exact for integers
+            index_map = np.rint(padded_index[..., 0]).astype(np.int32)
+            src_shape = padded_index.shape
+            if source_layout.valid_fraction == 1.0:
+                valid = np.ones((1, 1, 1), np.float32)
+        all_valid = filled.valid_fraction == 1.0
+        tgt_valid = (np.ones((1, 1, 1), np.uint8) if all_valid
+                     else filled.valid_mask(grid).reshape(faces).astype(np.uint8))
+        turn = np.eye(3) if rotation is None else np.asarray(rotation, dtype=np.float64)
+        self.kernel_args = (src_kind, src_shape, valid, index_map, levels, row_offsets, caps, _axes(source_layout),
+                            source_grid[-2], source_grid[-1], fused.CODES[filled.name], _axes(filled), faces[1],
+                            self.width, tgt_valid, all_valid, k, k_max, turn)
+
+
+    def band(self, first: int):
+        n = min(self.band_lines, self.lines - first)
+        idx = np.empty((n * self.width, self.max_taps), np.int32)
+        wts = np.empty((n * self.width, self.max_taps), np.float32)
+        counts = np.empty(n * self.width, np.int64)
+        fused.footprint_taps(*self.kernel_args, first, idx, wts, counts)
+        return counts, idx, wts
+
+
+def delivered(taps: _Taps, source_grid: tuple[int, ...], omega_t: np.ndarray) -> np.ndarray:
+    """Σ_t Ω_t W_ts for every source pixel s (flat float64, as the kernel reads them): the energy a sun wholly in
+    each pixel ends with. The compiled adjoint of the taps (:func:`lightprobe.envmap.fused.footprint_delivery`), a
+    share of the target's lines on each of :func:`lightprobe.limits.threads` threads, each into its own total:
+    nothing the size of the taps is held (a :class:`Resampler` holds them: :func:`_taps_delivery`)."""
+    n_total = math.prod(source_grid) + taps.reduced_size
+    omega_t = np.ascontiguousarray(omega_t, dtype=np.float64)
+    threads = min(limits.threads(), max(1, taps.lines // 8))
+    step = -(-taps.lines // (4 * threads))  # 4 shares a thread, interleaved: the slow lines (poles, rims) even out
+    firsts = list(range(0, taps.lines, step))
+
+    def thread_total(t: int) -> np.ndarray:  # the same shares in the same order every time: the same sums
+        total = np.zeros(n_total)
+        for first in firsts[t::threads]:
+            fused.footprint_delivery(*taps.kernel_args, first, min(first + step, taps.lines), omega_t,
+                                     taps.max_taps, total)
+        return total
+
+    with ThreadPoolExecutor(threads) as pool:
+        totals = list(pool.map(thread_total, range(threads)))
+    return _unreduced(np.sum(totals, axis=0), source_grid, taps.found_levels)
+
+
+def _ground(source_layout: Layout, source_grid: tuple[int, ...], target: Layout, rotation) -> np.ndarray:
+    """The source pixels the flux correction leaves alone (bool, the source's grid): those within
+    :data:`lightprobe.envmap.flux.GROUND_MARGIN` of a disc's rim direction (the source's, or the target's seen in
+    the source), where one direction is spread over a ring of pixels."""
+    ground = np.zeros(source_grid, dtype=bool)
+    rims = [source_layout.rim_direction(), target.rim_direction()]
+    if rims[1] is not None and rotation is not None:
+        rims[1] = np.asarray(rotation, np.float64).T @ rims[1]  # the target's rim direction, seen in the source
+    rims = [rim for rim in rims if rim is not None]
+    if rims:
+        d = pixel_directions(source_layout, source_grid)
+        for rim in rims:
+            ground |= d @ rim > math.cos(math.radians(flux.GROUND_MARGIN))
+    return ground
+
+
+_FLUX_CACHE: dict = {}
+_FLUX_CACHE_BYTES = 256 << 20  # the corrections a process keeps (a batch converts one pair of grids many times)
+
+
+def _flux_stencil(source_layout: Layout, source_grid: tuple[int, ...], target: Layout, filled_grid, rotation,
+                  samples: int | None, rates: tuple[int, int], delivery_of) -> flux.Stencil | None:
+    """The flux correction of this conversion (:mod:`lightprobe.envmap.flux`), or None where none is made: a
+    lat-long source (its conversions keep a sun's energy by their own construction — the polar rows' reductions
+    and rational weights, measured in tests/test_resample.py) and a rate given by hand (``samples``: the kernel
+    compared as it is). ``rates`` (k, k_max) are the conversion's; ``delivery_of(omega_t)`` gives each source
+    pixel's delivery, flat, as the kernel reads them. Kept for the last pairs of grids, up to
+    :data:`_FLUX_CACHE_BYTES` of weights, keyed by the layouts themselves (a turned mirror ball is named "sphere"
+    too)."""
+    if samples is not None or source_layout.name == "latlong":
+        return None
+    target = _face_layout(target)  # a cross target is filled as cube faces
+    key = (source_layout, source_grid, target, tuple(filled_grid), rates,
+           None if rotation is None else np.asarray(rotation, np.float64).tobytes())
+    if key in _FLUX_CACHE:
+        return _FLUX_CACHE[key]
+    omega_t = pixel_solid_angles(target, tuple(filled_grid)).reshape(-1)
+    per_pixel = delivery_of(omega_t).reshape(source_grid)
+    if balance.prefilter_for(source_layout) is not None:  # the kernel reads balanced texels: each raw texel's share
+        per_pixel = balance.delivered_to_texels(per_pixel)
+    omega_s = pixel_solid_angles(source_layout, source_grid)
+    ground = _ground(source_layout, source_grid, target, rotation)
+    face_shape = (-1,) + tuple(source_grid[-2:])
+    stencil = flux.stencil_for(source_layout, per_pixel.reshape(face_shape), omega_s.reshape(face_shape),
+                               ground.reshape(face_shape) if ground.any() else None)
+    while _FLUX_CACHE and sum(kept.nbytes for kept in _FLUX_CACHE.values()) + stencil.nbytes > _FLUX_CACHE_BYTES:
+        _FLUX_CACHE.pop(next(iter(_FLUX_CACHE)))  # the oldest first
+    _FLUX_CACHE[key] = stencil
+    return stencil
 
 
 TILE_TAPS = fused.TILE * fused.TILE
@@ -528,6 +652,7 @@ _ANY_DIRECTION = np.array([0.0, 0.0, -1.0])  # stands in for subsamples off the 
 # tests/test_limits.py). Per source pixel: the padded copy a cube or disc source is read from (a latlong is read in
 # place), box reductions. Per target pixel: the float32 output and, for discs, the validity mask.
 RESAMPLE_BYTES_PER_SOURCE_PIXEL = 24
+FLUX_BYTES_PER_SOURCE_PIXEL = 160
 RESAMPLE_BYTES_PER_TARGET_PIXEL = {"angular": 20, "sphere": 20}
 RESAMPLE_BYTES_PER_TARGET_PIXEL_DEFAULT = 16
 
@@ -542,26 +667,34 @@ def check_size(layout: Layout, size: int) -> int:
     return n
 
 
-def resample_memory(source_pixels: int, target_pixels: int, target: Layout) -> int:
+def resample_memory(source_pixels: int, target_pixels: int, target: Layout, source: Layout | None = None) -> int:
     """Estimated peak memory (bytes) of :func:`resample` from ``source_pixels`` to ``target_pixels`` of ``target``
-    (beyond the source map itself)."""
+    (beyond the source map itself); a ``source`` other than a lat-long (or not named) adds its flux correction's
+    deliveries, flows and weights (:func:`_flux_stencil`: measured 75–120 B a source pixel, more where a face's
+    side is just past a power of two)."""
     per_target = RESAMPLE_BYTES_PER_TARGET_PIXEL.get(target.name, RESAMPLE_BYTES_PER_TARGET_PIXEL_DEFAULT)
-    return source_pixels * RESAMPLE_BYTES_PER_SOURCE_PIXEL + target_pixels * per_target
+    per_source = RESAMPLE_BYTES_PER_SOURCE_PIXEL
+    if source is None or source.name != "latlong":
+        per_source += FLUX_BYTES_PER_SOURCE_PIXEL
+    return source_pixels * per_source + target_pixels * per_target
 
 
 # ---- energy of a one-pixel sun, every pixel at once (Resampler.energy_gains) ----------------------------------------
 
 def _taps_delivery(resampler: Resampler, layout: Layout, grid: tuple[int, ...], omega_t: np.ndarray) -> np.ndarray:
-    """Σ_t Ω_t W_ts per source pixel s (flat), from the cached taps; a tap on a lat-long's reduced polar row is
-    handed on to the source pixels it averages (2^ℓ of them, or the whole row)."""
-    n_src = math.prod(grid)
+    """Σ_t Ω_t W_ts per source pixel s (flat), from the cached taps."""
     per_tap = resampler.wts.astype(np.float64) * np.repeat(omega_t, np.diff(resampler.offsets))
-    total = np.bincount(resampler.idx, per_tap, minlength=n_src)
+    return _unreduced(np.bincount(resampler.idx, per_tap, minlength=math.prod(grid)), grid, resampler._levels)
+
+
+def _unreduced(total: np.ndarray, grid: tuple[int, ...], found: np.ndarray | None) -> np.ndarray:
+    """Per source pixel (flat) from per tap index: a tap on a lat-long's reduced polar row is handed on to the
+    source pixels it averages (2^ℓ of them, or the whole row)."""
+    n_src = math.prod(grid)
     delivered = total[:n_src].copy()
-    if resampler._levels is None:
+    if found is None:
         return delivered
     h, w = grid
-    found = resampler._levels
     levels = polar.kernel_levels(found, w)
     row_offsets, _, _ = polar.row_layout(levels, w)
     reduced = total[n_src:]

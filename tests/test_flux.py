@@ -1,0 +1,157 @@
+"""The flux correction (lightprobe.envmap.flux): the flows are exact, the pre-filter keeps uniform maps uniform and
+positive maps positive, and a sun in any pixel of a cube, angular or mirror-ball source keeps its energy — through
+the exact every-pixel measure (Resampler.energy_gains) and through resample itself, sun by sun. Each energy test
+also checks that the uncorrected conversion misses the bar, so it can fail."""
+
+from __future__ import annotations
+
+import importlib
+
+import numpy as np
+import pytest
+
+from lightprobe.envmap import EnvMap, Resampler, flux
+from lightprobe.envmap.map import pixel_directions, pixel_solid_angles
+from lightprobe.layouts import layout
+
+resample_module = importlib.import_module("lightprobe.envmap.resample")
+
+COARSE = [("cube", 64, "latlong", 32), ("cube", 64, "angular", 32), ("angular", 128, "latlong", 32),
+          ("sphere", 128, "cube", 32), ("cube", 64, "sphere", 32)]
+
+
+@pytest.mark.parametrize("name, n", [("cube", 16), ("cube", 37), ("angular", 33), ("sphere", 40)])
+def test_the_flows_make_every_delivery_its_solid_angle(name, n):
+    """Random deliveries (±2 % of each pixel's solid angle, the total kept): after the pre-filter every pixel's
+    effective delivery — its transpose applied — is its solid angle to float32 weights' rounding."""
+    lay = layout(name)
+    grid = lay.grid_shape(n)
+    omega = pixel_solid_angles(lay, grid).reshape((-1,) + grid[-2:])
+    delivery = omega * (1 + 0.02 * np.random.default_rng(n).standard_normal(omega.shape))
+    delivery *= omega.sum() / delivery.sum()
+    stencil = flux.stencil_for(lay, delivery, omega)
+    inside = omega > 0
+    effective = stencil.delivered(np.where(inside, delivery, 0.0))
+    np.testing.assert_allclose(effective[inside], omega[inside], rtol=1e-6)
+    assert stencil.residual < 1e-6
+    assert np.abs(delivery[inside] / omega[inside] - 1).max() > 0.05  # there was something to correct
+    assert 0 < stencil.largest_weight < 0.3
+    for weights in (stencil.right, stencil.left, stencil.down, stencil.up, stencil.seams[2]):
+        assert (weights >= 0).all()
+
+
+def test_the_prefilter_keeps_uniform_maps_exact_and_positive_maps_positive():
+    lay = layout("cube")
+    grid = lay.grid_shape(24)
+    omega = pixel_solid_angles(lay, grid)
+    delivery = omega * (1 + 0.03 * np.random.default_rng(5).standard_normal(omega.shape))
+    stencil = flux.stencil_for(lay, delivery * omega.sum() / delivery.sum(), omega)
+    uniform = np.full(grid + (3,), 2.5, np.float32)
+    np.testing.assert_array_equal(stencil.apply(uniform), uniform)
+    positive = np.random.default_rng(6).random(grid + (3,)).astype(np.float32) + 1e-3
+    assert (stencil.apply(positive) > 0).all()
+    sun = np.zeros(grid + (3,), np.float32)
+    sun[2, 5, 7] = 1.0
+    spread = stencil.apply(sun)
+    assert spread[2, 5, 7, 0] > 0.9 and np.count_nonzero(spread[..., 0]) <= 5  # a sun stays where it was
+
+
+def _gains(source, size, target, out_size):
+    src = layout(source)
+    gains = np.abs(Resampler(src, src.grid_shape(size), layout(target), out_size).energy_gains(rim_margin=25))
+    return gains[np.isfinite(gains)]
+
+
+@pytest.mark.parametrize("source, size, target, out_size", COARSE)
+def test_every_pixel_keeps_its_energy_with_the_correction_and_not_without(source, size, target, out_size,
+                                                                          monkeypatch):
+    resample_module._FLUX_CACHE.clear()
+    assert _gains(source, size, target, out_size).max() < 1e-5
+    (stencil,) = resample_module._FLUX_CACHE.values()
+    assert stencil.largest_weight < 0.05  # a small blend: a sun stays where it was
+    monkeypatch.setattr(resample_module, "_flux_stencil", lambda *args, **kwargs: None)
+    assert _gains(source, size, target, out_size).max() > 2e-3
+
+
+@pytest.mark.parametrize("source, size, target, out_size", COARSE[:4])
+def test_suns_through_resample_keep_their_energy(source, size, target, out_size, monkeypatch):
+    """Sun by sun through resample (the streamed delivery and the direct pass, not the Resampler's taps): the
+    pixels the uncorrected conversion treated worst, and a few others; and a uniform map stays exactly uniform."""
+    src = layout(source)
+    grid = src.grid_shape(size)
+    with monkeypatch.context() as patched:
+        patched.setattr(resample_module, "_flux_stencil", lambda *args, **kwargs: None)
+        before = np.abs(Resampler(src, grid, layout(target), out_size).energy_gains(rim_margin=25))
+    measured = np.nonzero(np.isfinite(before.ravel()))[0]
+    worst_first = measured[np.argsort(before.ravel()[measured])[::-1]]
+    picks = list(worst_first[:6]) + list(np.random.default_rng(1).choice(measured, 6))
+    for flat in picks:
+        where = np.unravel_index(flat, grid)
+        data = np.zeros(grid + (3,), np.float32)
+        data[where] = 1.0
+        sun = EnvMap(data, src)
+        kept = resample_module.resample(sun, layout(target), out_size).integral()[0] / sun.integral()[0]
+        assert abs(kept - 1) < 1e-5, (where, before[where], kept)
+    assert np.nanmax(before) > 2e-3
+    uniform = resample_module.resample(EnvMap(np.full(grid + (3,), 2.5, np.float32), src), layout(target),
+                                       out_size)
+    valid = layout(target).valid_mask(uniform.grid)
+    np.testing.assert_array_equal(uniform.data[valid], 2.5)
+
+
+def test_the_streamed_delivery_is_the_stored_taps_delivery():
+    """resample's delivery (the compiled adjoint, no taps held) equals the Resampler's (its stored taps)."""
+    src, target = layout("cube"), layout("angular")
+    grid = src.grid_shape(32)
+    r = Resampler(src, grid, target, 40)
+    omega_t = pixel_solid_angles(target, target.grid_shape(40)).reshape(-1)
+    stored = resample_module._taps_delivery(r, src, grid, omega_t)
+    env = EnvMap(np.zeros(grid + (3,), np.float32), src)
+    _, _, k, steps = resample_module._prepared(env, target, 40, None)
+    taps = resample_module._Taps(src, grid, target, 40, k, resample_module._k_max(env, target, k, None), steps, None)
+    np.testing.assert_allclose(resample_module.delivered(taps, grid, omega_t), stored, rtol=1e-9, atol=1e-15)
+
+
+def test_the_rim_is_the_ground_and_the_rest_is_corrected():
+    """Pixels within GROUND_MARGIN of a disc's rim direction are left as they are; every other pixel is exact."""
+    src = layout("angular")
+    grid = src.grid_shape(96)
+    r = Resampler(src, grid, layout("latlong"), 32)
+    gains = r.energy_gains()
+    near = pixel_directions(src, grid) @ src.rim_direction() > np.cos(np.radians(flux.GROUND_MARGIN))
+    inside = np.isfinite(gains) & ~near
+    assert np.abs(gains[inside]).max() < 1e-5
+    assert np.nanmax(np.abs(gains[near])) > 2e-3  # the rim's ring, one direction spread over many pixels
+
+
+def test_each_layout_has_its_own_correction_even_under_one_name():
+    """A turned mirror ball is named "sphere" like the plain one: the correction kept for one must not serve the
+    other (the cache is keyed by the layouts themselves)."""
+    from lightprobe.frames import rotation_from_ypr
+    from lightprobe.layouts import Sphere
+
+    resample_module._FLUX_CACHE.clear()
+    src = layout("cube")
+    grid = src.grid_shape(16)
+    Resampler(src, grid, layout("sphere"), 20).energy_gains()
+    turned = np.abs(Resampler(src, grid, Sphere(rotation_from_ypr(-40, 25, 5)), 20).energy_gains(rim_margin=25))
+    assert np.nanmax(turned) < 1e-5
+
+
+def test_ground_pixels_barely_read_carry_no_flow_and_no_blend_exceeds_the_cap():
+    """By a disc's rim a conversion may barely read a pixel: routing flow through it would weigh its few reads far
+    over 1 (1570 % in an angular 1000 → lat-long 1000 before). Such ground pixels get no weights, every pixel's total
+    stays within MAX_WEIGHT, and the other pixels are still exact."""
+    lay = layout("angular")
+    grid = lay.grid_shape(48)
+    omega = pixel_solid_angles(lay, grid)[None]
+    rng = np.random.default_rng(4)
+    delivery = omega * (1 + 0.01 * rng.standard_normal(omega.shape))
+    radius = np.hypot(*np.meshgrid(np.arange(48) - 23.5, np.arange(48) - 23.5)) / 24
+    ground = (radius > 0.85)[None] & (omega > 0)
+    barely = ground & (radius > 0.96)[None]  # the outermost ring, as by a real rim
+    delivery[barely] *= 0.01
+    stencil = flux.stencil_for(lay, delivery, omega, ground)
+    totals = stencil.totals()
+    assert totals[barely].max() == 0 and totals.max() <= flux.MAX_WEIGHT + 1e-6
+    assert stencil.residual < 1e-6
