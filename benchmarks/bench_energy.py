@@ -1,7 +1,7 @@
 """Energy of a one-pixel sun through every conversion: issue 9's accuracy bar (∫L dω within 0.2 %) measured on
 directions nobody chose, beside the ones the tests pin down.
 
-    python benchmarks/bench_energy.py [--suns 40] [--seed 11] [--part all|balance]
+    python benchmarks/bench_energy.py [--suns 40] [--seed 11] [--part all|balance|flux]
 
 For each source layout (a 128-row lat-long, 64² cube faces, 128² angular and mirror-ball maps) and each target
 layout at sizes 16, 32 and 64 (unturned), two tables:
@@ -12,8 +12,10 @@ layout at sizes 16, 32 and 64 (unturned), two tables:
   exact, from the conversion's weights (:meth:`lightprobe.envmap.Resampler.energy_gains`). Random suns miss the
   few pixels where a conversion goes wrong (a cube's edges, the rim side of a disc); this table does not.
 Then the every-pixel measure at full size (cube 256–512, discs 1024, targets 256–1024), what each pixel's own
-subsample rate costs against one rate for the whole map, and what a cube source's texel balance costs
-(:mod:`lightprobe.envmap.balance`: its weights once per size, then one pass over the faces).
+subsample rate costs against one rate for the whole map, what a cube source's texel balance costs
+(:mod:`lightprobe.envmap.balance`: its weights once per size, then one pass over the faces), and what the flux
+correction costs (:mod:`lightprobe.envmap.flux`: the conversion's adjoint and the flows once per pair of grids and
+process, then one pass over the source).
 Suns within 25° of a disc's rim direction (where one direction is a ring of pixels) are left out, in the source and
 in the target.
 """
@@ -21,6 +23,7 @@ in the target.
 from __future__ import annotations
 
 import argparse
+import importlib
 import math
 
 from common import require  # noqa: F401  (sets the environment first)
@@ -70,11 +73,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--suns", type=int, default=40)
     parser.add_argument("--seed", type=int, default=11)
-    parser.add_argument("--part", choices=("all", "balance"), default="all",
-                        help="'balance': only the texel balance's cost table")
+    parser.add_argument("--part", choices=("all", "balance", "flux"), default="all",
+                        help="'balance' or 'flux': only that correction's cost table")
     args = parser.parse_args()
-    if args.part == "balance":
-        balance_cost()
+    if args.part != "all":
+        {"balance": balance_cost, "flux": flux_cost}[args.part]()
         return
     suns = directions(args.suns, args.seed)
     print(f"one-pixel sun (10× the sky's power), {len(suns)} directions ({args.suns} random, 8 at the poles)")
@@ -98,6 +101,7 @@ def main() -> None:
     full_size()
     rate_cost()
     balance_cost()
+    flux_cost()
 
 
 def kept_percent(resampler: Resampler) -> np.ndarray:
@@ -146,10 +150,14 @@ RATE_COST = [("angular", 1000, "latlong", 1024), ("sphere", 1000, "latlong", 102
 
 def rate_cost(rounds: int = 3) -> None:
     """Time of each pixel's own rate (graded cells, the vertex ramp) against one rate for the map (``samples`` =
-    the automatic base rate k), best of ``rounds`` alternating runs, on random maps."""
+    the automatic base rate k), best of ``rounds`` alternating runs, on random maps; the flux correction off in
+    both (a rate given by hand has none: flux_cost times it)."""
     import time
 
     from lightprobe.envmap.resample import supersampling
+
+    resample_module = importlib.import_module("lightprobe.envmap.resample")
+    with_flux, resample_module._flux_stencil = resample_module._flux_stencil, lambda *args, **kwargs: None
 
     print("\nper-pixel rates against one rate k for the whole map (best of 3, alternating)")
     print(f"  {'conversion':34s} {'k':>3s} {'one rate':>9s} {'per pixel':>9s}  ratio")
@@ -166,6 +174,7 @@ def rate_cost(rounds: int = 3) -> None:
                 best[mode] = min(best[mode], time.perf_counter() - t0)
         print(f"  {name} {size} → {target} {out_size}".ljust(36) + f"{k:3d} {best['one']:8.3f}s {best['own']:8.3f}s "
               f"{best['own'] / best['one']:5.2f}×")
+    resample_module._flux_stencil = with_flux
 
 
 BALANCE_COST = [("cube", 256, "latlong", 512), ("cube", 512, "latlong", 1024), ("cube", 1024, "latlong", 2048),
@@ -184,6 +193,8 @@ def balance_cost(rounds: int = 3) -> None:
     print(f"  {'conversion':34s} {'weights':>8s} {'pass':>7s} {'without':>8s} {'with':>8s}  ratio")
     rng = np.random.default_rng(2)
     with_balance = balance.prefilter_for
+    resample_module = importlib.import_module("lightprobe.envmap.resample")
+    with_flux, resample_module._flux_stencil = resample_module._flux_stencil, lambda *args, **kwargs: None
     for name, size, target, out_size in BALANCE_COST:
         src_layout, tgt_layout = layout(name), layout(target)
         env = EnvMap(rng.random(src_layout.grid_shape(size) + (3,)).astype(np.float32), src_layout)
@@ -206,6 +217,44 @@ def balance_cost(rounds: int = 3) -> None:
             balance.prefilter_for = with_balance
         print(f"  {name} {size} → {target} {out_size}".ljust(36) + f"{made:7.3f}s {one_pass:6.3f}s "
               f"{best['without']:7.3f}s {best['with']:7.3f}s {best['with'] / best['without']:5.2f}×")
+    resample_module._flux_stencil = with_flux
+
+
+FLUX_COST = [("cube", 256, "latlong", 512), ("cube", 512, "latlong", 1024), ("cube", 1024, "latlong", 2048),
+             ("cube", 512, "cube", 512), ("cube", 512, "angular", 1024), ("angular", 1000, "latlong", 1000),
+             ("sphere", 1024, "cube", 256)]
+
+
+def flux_cost(rounds: int = 3) -> None:
+    """A conversion with its flux correction made (the adjoint pass and the flows: once per pair of grids and
+    process), with it kept, and without it (best of ``rounds`` alternating runs each), and the largest weight."""
+    import time
+
+    resample_module = importlib.import_module("lightprobe.envmap.resample")
+    print("\nthe flux correction: conversion time when it is made, when it is kept, and without it (best of 3)")
+    print(f"  {'conversion':34s} {'without':>8s} {'made':>8s} {'kept':>8s}  made/without kept/without  weight")
+    rng = np.random.default_rng(3)
+    with_flux = resample_module._flux_stencil
+    for name, size, target, out_size in FLUX_COST:
+        src_layout, tgt_layout = layout(name), layout(target)
+        env = EnvMap(rng.random(src_layout.grid_shape(size) + (3,)).astype(np.float32), src_layout)
+        best = {"without": math.inf, "made": math.inf, "kept": math.inf}
+        try:
+            for _ in range(rounds):
+                for mode in best:
+                    resample_module._flux_stencil = with_flux if mode != "without" else (lambda *a, **k: None)
+                    if mode == "made":
+                        resample_module._FLUX_CACHE.clear()
+                    t0 = time.perf_counter()
+                    resample(env, tgt_layout, out_size)
+                    best[mode] = min(best[mode], time.perf_counter() - t0)
+        finally:
+            resample_module._flux_stencil = with_flux
+        weight = max(stencil.largest_weight for stencil in resample_module._FLUX_CACHE.values())
+        resample_module._FLUX_CACHE.clear()
+        print(f"  {name} {size} → {target} {out_size}".ljust(36) + f"{best['without']:7.3f}s {best['made']:7.3f}s "
+              f"{best['kept']:7.3f}s  {best['made'] / best['without']:11.2f}× {best['kept'] / best['without']:10.2f}×"
+              f"  {100 * weight:5.2f} %")
 
 
 if __name__ == "__main__":
