@@ -155,3 +155,19 @@ def test_ground_pixels_barely_read_carry_no_flow_and_no_blend_exceeds_the_cap():
     totals = stencil.totals()
     assert totals[barely].max() == 0 and totals.max() <= flux.MAX_WEIGHT + 1e-6
     assert stencil.residual < 1e-6
+
+
+def test_threads_converting_at_once_share_the_kept_corrections(monkeypatch):
+    """Several threads converting different pairs while the cache evicts (a Dask worker's threads): no error, and
+    each conversion is the one a lone thread makes."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    monkeypatch.setattr(resample_module, "_FLUX_CACHE_BYTES", 40_000)  # room for about one small correction
+    src = layout("cube")
+    env = EnvMap(np.random.default_rng(2).random(src.grid_shape(12) + (3,)).astype(np.float32), src)
+    jobs = [(target, size) for target in ("latlong", "angular", "sphere", "cube") for size in (6, 8, 10)] * 3
+    alone = {job: resample_module.resample(env, layout(job[0]), job[1]).data for job in set(jobs)}
+    with ThreadPoolExecutor(4) as pool:
+        together = list(pool.map(lambda job: resample_module.resample(env, layout(job[0]), job[1]).data, jobs))
+    for job, data in zip(jobs, together):
+        np.testing.assert_array_equal(data, alone[job])

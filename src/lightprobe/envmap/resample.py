@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import math
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
@@ -564,6 +565,7 @@ def _ground(source_layout: Layout, source_grid: tuple[int, ...], target: Layout,
 
 
 _FLUX_CACHE: dict = {}
+_FLUX_LOCK = threading.Lock()
 _FLUX_CACHE_BYTES = 256 << 20  # the corrections a process keeps (a batch converts one pair of grids many times)
 
 
@@ -581,8 +583,9 @@ def _flux_stencil(source_layout: Layout, source_grid: tuple[int, ...], target: L
     target = _face_layout(target)  # a cross target is filled as cube faces
     key = (source_layout, source_grid, target, tuple(filled_grid), rates,
            None if rotation is None else np.asarray(rotation, np.float64).tobytes())
-    if key in _FLUX_CACHE:
-        return _FLUX_CACHE[key]
+    with _FLUX_LOCK:
+        if key in _FLUX_CACHE:
+            return _FLUX_CACHE[key]
     omega_t = pixel_solid_angles(target, tuple(filled_grid)).reshape(-1)
     per_pixel = delivery_of(omega_t).reshape(source_grid)
     if balance.prefilter_for(source_layout) is not None:  # the kernel reads balanced texels: each raw texel's share
@@ -592,9 +595,10 @@ def _flux_stencil(source_layout: Layout, source_grid: tuple[int, ...], target: L
     face_shape = (-1,) + tuple(source_grid[-2:])
     stencil = flux.stencil_for(source_layout, per_pixel.reshape(face_shape), omega_s.reshape(face_shape),
                                ground.reshape(face_shape) if ground.any() else None)
-    while _FLUX_CACHE and sum(kept.nbytes for kept in _FLUX_CACHE.values()) + stencil.nbytes > _FLUX_CACHE_BYTES:
-        _FLUX_CACHE.pop(next(iter(_FLUX_CACHE)))  # the oldest first
-    _FLUX_CACHE[key] = stencil
+    with _FLUX_LOCK:  # threads converting at once (a Dask worker's) share the cache
+        while _FLUX_CACHE and sum(kept.nbytes for kept in _FLUX_CACHE.values()) + stencil.nbytes > _FLUX_CACHE_BYTES:
+            _FLUX_CACHE.pop(next(iter(_FLUX_CACHE)))  # the oldest first
+        _FLUX_CACHE[key] = stencil
     return stencil
 
 
