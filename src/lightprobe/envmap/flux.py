@@ -55,9 +55,11 @@ class Stencil:
     seams: tuple[np.ndarray, np.ndarray, np.ndarray]
     residual: float  # the largest |Ω_j − effective delivery| / Ω_j left among the corrected pixels (float rounding)
 
-    def apply(self, faces: np.ndarray) -> np.ndarray:
-        """The pre-filtered pixels, float32 (F, H, W, C), from ``faces`` (F, H, W, C)."""
-        x = np.asarray(faces, dtype=np.float32)
+    def apply(self, pixels: np.ndarray) -> np.ndarray:
+        """The pre-filtered pixels, float32, from ``pixels`` of the source's grid and C channels ((F,) H, W, C)."""
+        x = np.asarray(pixels, dtype=np.float32)
+        shape = x.shape
+        x = x.reshape((-1,) + shape[-3:])
         out = x.copy()
         for f in range(x.shape[0]):  # a face at a time: the differences are the pass's only temporaries
             dx = x[f, :, 1:] - x[f, :, :-1]
@@ -71,12 +73,13 @@ class Stencil:
         if reader.size:
             flat, src = out.reshape(-1, x.shape[-1]), x.reshape(-1, x.shape[-1])
             np.add.at(flat, reader, weight[:, None] * (src[read] - src[reader]))
-        return out
+        return out.reshape(shape)
 
     def delivered(self, per_pixel: np.ndarray) -> np.ndarray:
-        """Each source pixel's delivery through the pre-filter, from the delivery ``per_pixel`` (F, H, W) of the
+        """Each source pixel's delivery through the pre-filter, from the delivery ``per_pixel`` ((F,) H, W) of the
         pixels the conversion reads: the transpose of :meth:`apply` (pixel p's weight w_pq moves D_p w_pq to q)."""
-        d = np.asarray(per_pixel, dtype=np.float64)
+        shape = np.shape(per_pixel)
+        d = np.asarray(per_pixel, dtype=np.float64).reshape((-1,) + shape[-2:])
         out = d.copy()
         for weights, reader, read in ((self.right, (slice(None), slice(None), slice(None, -1)),
                                        (slice(None), slice(None), slice(1, None))),
@@ -92,7 +95,7 @@ class Stencil:
             flat, moved = out.reshape(-1), w * d.reshape(-1)[p]
             np.add.at(flat, q, moved)
             np.add.at(flat, p, -moved)
-        return out
+        return out.reshape(shape)
 
     @property
     def nbytes(self) -> int:
@@ -239,7 +242,7 @@ def _split_blocks(d, s, fh, fv, block: int, half: int) -> None:
     faces, size = d.shape[0], d.shape[1]
     n = size // half  # children per side
     totals = s.reshape(faces, n, half, n, half).sum(axis=(2, 4))
-    sa, sb, sc, sd = totals[:, 0::2, 0::2], totals[:, 0::2, 1::2], totals[:, 1::2, 0::2], totals[:, 1::2, 1::2]
+    sa, sb, sc = totals[:, 0::2, 0::2], totals[:, 0::2, 1::2], totals[:, 1::2, 0::2]  # d's follows: Σ = 0
     top = np.arange(half - 1, size - 1, block)  # the row above each block's middle line; the column left of it
     cap_v = np.minimum(d[:, top], d[:, top + 1]).reshape(faces, n // 2, n, half)  # per column pair
     cap_h = np.minimum(d[:, :, top], d[:, :, top + 1]).transpose(0, 2, 1).reshape(faces, n // 2, n, half)

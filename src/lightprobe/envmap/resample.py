@@ -285,26 +285,25 @@ def _plan(source: EnvMap, target: Layout, size: int | None, rotation, samples: i
     src_kind = fused.CODES[source.layout.name]
     turn = np.eye(3) if rotation is None else np.asarray(rotation, dtype=np.float64)
     reduction = polar.no_reduction(source.grid[-2])
+    k_max = _k_max(source, filled, k, samples)
     if src_kind == fused.LATLONG:  # read in place: columns wrap and rows reflect across the poles in the kernel
         img, valid = np.ascontiguousarray(source.data)[None], np.ones((1, 1, 1), dtype=np.float32)
         if reduce_poles:
             reduction = polar.reduced_rows(img[0], polar.polar_levels(steps, source.grid, k))
     else:
         data = source.data
-        k_max = _k_max(source, filled, k, samples)
         corrected = _flux_stencil(source.layout, source.grid, target, grid, rotation, samples, (k, k_max),
                                   lambda omega_t: delivered(_Taps(source.layout, source.grid, filled,
                                                                   filled.size_of(grid), k, k_max, steps, rotation),
                                                             source.grid, omega_t))
         if corrected is not None:
-            data = corrected.apply(data.reshape((-1,) + source.grid[-2:] + (3,))).reshape(data.shape)
+            data = corrected.apply(data)
         img, valid = source.layout.padded(data, prefilter=balance.prefilter_for(source.layout))
         if source.all_valid:  # a cube's padding is valid everywhere: no table of ones for the kernel to read
             valid = np.ones((1, 1, 1), dtype=np.float32)
     all_valid = filled.valid_fraction == 1.0  # latlong, cube: no per-pixel mask
     tgt_valid = (np.ones((1, 1, 1), dtype=np.uint8) if all_valid
                  else filled.valid_mask(grid).reshape(faces).astype(np.uint8))
-    k_max = _k_max(source, filled, k, samples)
     args = (src_kind, img, valid, *reduction, _axes(source.layout), source.grid[-2], source.grid[-1],
             fused.CODES[filled.name], _axes(filled), faces[1], tgt_valid, all_valid, k, k_max, turn)
     by_symmetry = (symmetric and src_kind == fused.LATLONG and filled.name == "cube"
@@ -425,11 +424,8 @@ class Resampler:
             if self._separable is not None:
                 delivered = _separable_delivery(self._separable, omega_t)
             else:
-                delivered = _taps_delivery(self, layout, grid, omega_t.reshape(-1))
-                if balance.prefilter_for(layout) is not None:  # the taps weigh balanced texels: a sun's own share
-                    delivered = balance.delivered_to_texels(delivered.reshape(grid))
-                if self._flux is not None:  # ... and the balance reads the flux-corrected pixels
-                    delivered = self._flux.delivered(delivered.reshape((-1,) + grid[-2:]))
+                delivered = _raw_pixel_delivery(_taps_delivery(self, layout, grid, omega_t.reshape(-1)), layout,
+                                                grid, self._flux)
             with np.errstate(invalid="ignore", divide="ignore"):
                 gains = np.where(omega_s > 0, delivered.reshape(grid) / omega_s - 1.0, np.nan)
         if rim_margin is not None:
@@ -450,8 +446,7 @@ class Resampler:
             return resample(env, self.target, self.size, rotation=self.rotation, samples=self.samples)
         data = self.layout.to_cube(env.data) if isinstance(self.layout, Cross) else env.data
         if self._flux is not None:  # as resample: the flux correction, then the balance
-            shape = np.shape(data)
-            data = self._flux.apply(np.reshape(data, (-1,) + shape[-3:-1] + (3,))).reshape(shape)
+            data = self._flux.apply(data)
         if balance.prefilter_for(self.layout) is not None:  # the taps read a cube's balanced texels, as resample
             data = balance.balanced_faces(np.asarray(data, dtype=np.float32))
         reduced = (polar.no_reduction()[1] if self._levels is None
@@ -514,7 +509,6 @@ class _Taps:
         self.kernel_args = (src_kind, src_shape, valid, index_map, levels, row_offsets, caps, _axes(source_layout),
                             source_grid[-2], source_grid[-1], fused.CODES[filled.name], _axes(filled), faces[1],
                             self.width, tgt_valid, all_valid, k, k_max, turn)
-
 
     def band(self, first: int):
         n = min(self.band_lines, self.lines - first)
@@ -587,9 +581,7 @@ def _flux_stencil(source_layout: Layout, source_grid: tuple[int, ...], target: L
         if key in _FLUX_CACHE:
             return _FLUX_CACHE[key]
     omega_t = pixel_solid_angles(target, tuple(filled_grid)).reshape(-1)
-    per_pixel = delivery_of(omega_t).reshape(source_grid)
-    if balance.prefilter_for(source_layout) is not None:  # the kernel reads balanced texels: each raw texel's share
-        per_pixel = balance.delivered_to_texels(per_pixel)
+    per_pixel = _raw_pixel_delivery(delivery_of(omega_t), source_layout, source_grid)
     omega_s = pixel_solid_angles(source_layout, source_grid)
     ground = _ground(source_layout, source_grid, target, rotation)
     face_shape = (-1,) + tuple(source_grid[-2:])
@@ -689,6 +681,17 @@ def _taps_delivery(resampler: Resampler, layout: Layout, grid: tuple[int, ...], 
     """Σ_t Ω_t W_ts per source pixel s (flat), from the cached taps."""
     per_tap = resampler.wts.astype(np.float64) * np.repeat(omega_t, np.diff(resampler.offsets))
     return _unreduced(np.bincount(resampler.idx, per_tap, minlength=math.prod(grid)), grid, resampler._levels)
+
+
+def _raw_pixel_delivery(per_texel: np.ndarray, layout: Layout, grid: tuple[int, ...],
+                        stencil: flux.Stencil | None = None) -> np.ndarray:
+    """Each pixel's delivery (the source's grid) from the delivery of the texels the kernel reads (flat): those are
+    a cube's balanced texels (each raw texel's share through the balance's transpose), read from the flux-corrected
+    pixels when there is a ``stencil`` (its transpose, applied last: the correction comes first)."""
+    per_pixel = np.asarray(per_texel).reshape(grid)
+    if balance.prefilter_for(layout) is not None:
+        per_pixel = balance.delivered_to_texels(per_pixel)
+    return per_pixel if stencil is None else stencil.delivered(per_pixel)
 
 
 def _unreduced(total: np.ndarray, grid: tuple[int, ...], found: np.ndarray | None) -> np.ndarray:
