@@ -126,7 +126,8 @@ def every_pixel() -> None:
 
 FULL_SIZE = [("cube", 256, "latlong", 512), ("cube", 512, "latlong", 1024), ("cube", 256, "cube", 256),
              ("cube", 256, "angular", 512), ("angular", 1024, "latlong", 512), ("angular", 1024, "cube", 256),
-             ("sphere", 1024, "cube", 256), ("sphere", 1024, "angular", 512)]
+             ("sphere", 1024, "cube", 256), ("sphere", 1024, "angular", 512), ("latlong", 1024, "angular", 512),
+             ("latlong", 1024, "angular", 1024), ("latlong", 1024, "sphere", 512)]
 
 
 def full_size() -> None:
@@ -222,7 +223,7 @@ def balance_cost(rounds: int = 3) -> None:
 
 FLUX_COST = [("cube", 256, "latlong", 512), ("cube", 512, "latlong", 1024), ("cube", 1024, "latlong", 2048),
              ("cube", 512, "cube", 512), ("cube", 512, "angular", 1024), ("angular", 1000, "latlong", 1000),
-             ("sphere", 1024, "cube", 256)]
+             ("sphere", 1024, "cube", 256), ("latlong", 256, "sphere", 64)]
 
 
 def flux_cost(rounds: int = 3) -> None:

@@ -1,5 +1,6 @@
 """The flux correction (lightprobe.envmap.flux): the flows are exact, the pre-filter keeps uniform maps uniform and
-positive maps positive, and a sun in any pixel of a cube, angular or mirror-ball source keeps its energy — through
+positive maps positive, and a sun in any pixel of a cube, angular or mirror-ball source (or a small lat-long's into
+a disc) keeps its energy — through
 the exact every-pixel measure (Resampler.energy_gains) and through resample itself, sun by sun. Each energy test
 also checks that the uncorrected conversion misses the bar, so it can fail."""
 
@@ -17,7 +18,8 @@ from lightprobe.layouts import layout
 resample_module = importlib.import_module("lightprobe.envmap.resample")
 
 COARSE = [("cube", 64, "latlong", 32), ("cube", 64, "angular", 32), ("angular", 128, "latlong", 32),
-          ("sphere", 128, "cube", 32), ("cube", 64, "sphere", 32)]
+          ("sphere", 128, "cube", 32), ("cube", 64, "sphere", 32),
+          ("latlong", 128, "sphere", 32), ("latlong", 128, "angular", 16)]  # small lat-longs into small discs
 
 
 @pytest.mark.parametrize("name, n", [("cube", 16), ("cube", 37), ("angular", 33), ("sphere", 40)])
@@ -73,7 +75,7 @@ def test_every_pixel_keeps_its_energy_with_the_correction_and_not_without(source
     assert _gains(source, size, target, out_size).max() > 2e-3
 
 
-@pytest.mark.parametrize("source, size, target, out_size", COARSE[:4])
+@pytest.mark.parametrize("source, size, target, out_size", COARSE[:4] + COARSE[5:6])
 def test_suns_through_resample_keep_their_energy(source, size, target, out_size, monkeypatch):
     """Sun by sun through resample (the streamed delivery and the direct pass, not the Resampler's taps): the
     pixels the uncorrected conversion treated worst, and a few others; and a uniform map stays exactly uniform."""

@@ -323,6 +323,7 @@ def test_energy_gains_leave_out_the_rims():
     ("angular", 64, "latlong", 32, (40, 5)), ("sphere", 64, "cube", 16, (32, 3)),
     ("latlong", 64, "cube", 24, (1, 17)), ("latlong", 64, "latlong", 16, (0, 5)),  # polar rows; separable
     ("cube", 64, "angular", 8, (3, 63, 0)),  # box-reduced first
+    ("latlong", 128, "sphere", 16, (0, 5)),  # box-reduced once, not under 48 rows (the measure once halved it again)
 ])
 def test_energy_gains_are_a_sun_converted_directly(source, size, target, out_size, pixel):
     """Resampler.energy_gains (every pixel at once, from the weights) against a one-pixel sun put through
@@ -351,7 +352,9 @@ GAIN_CEILINGS = [  # every pixel of the source as the sun; cube, angular and mir
     ("angular", 128, "cube", 32, 0.0001),  # was 42 % (0.6 %)
     ("sphere", 128, "cube", 32, 0.0001),  # was 17 % (0.6 %)
     ("sphere", 128, "angular", 64, 0.0001),  # was 74 % (0.6 %)
-    ("latlong", 128, "sphere", 64, 0.004),  # was 4.4 %; a lat-long source is not flux-corrected
+    ("latlong", 128, "sphere", 64, 0.0001),  # was 4.4 % (0.32 %): a small lat-long into a disc is flux-corrected
+    ("latlong", 256, "sphere", 128, 0.0015),  # not corrected (over 2^16 pixels): 32 lookups a side by the rim, 0.10 %
+    ("latlong", 256, "angular", 128, 0.0015),  # not corrected: lookups 0.4 pixels apart, 0.10 % (0.27 % at 0.5)
     ("cube", 64, "cube", 64, 0.0001),  # was 4.6 % (0.86 % before the texel balance, 0.13 % before the flux)
     ("cube", 64, "latlong", 64, 0.0001),  # was 7.1 % (0.77 % unbalanced, 0.17 % balanced)
     ("cube", 64, "angular", 64, 0.0001),  # was 15.4 % (2.8 % unbalanced, 2.0 % balanced)
@@ -361,8 +364,8 @@ GAIN_CEILINGS = [  # every pixel of the source as the sun; cube, angular and mir
 @pytest.mark.parametrize("source, size, target, out_size, ceiling", GAIN_CEILINGS)
 def test_a_sun_in_any_pixel_keeps_its_energy_within_the_measured_ceiling(source, size, target, out_size, ceiling):
     """Every source pixel as the sun, exactly (energy_gains): held to what this code reaches, so a change that
-    loses it fails. Cube, angular and mirror-ball sources are flux-corrected (exact to float rounding); a lat-long
-    into a mirror ball is not, and stays over issue 9's 0.2 % (0.32 %)."""
+    loses it fails. Cube, angular and mirror-ball sources are flux-corrected (exact to float rounding), and lat-long
+    sources into discs up to resample.LATLONG_FLUX_MAX_PIXELS; a larger lat-long holds issue 9's 0.2 % by its rates."""
     worst = _kept_gains(source, size, target, out_size).max()
     assert worst < ceiling, f"{100 * worst:.3f} %"
 
@@ -410,16 +413,25 @@ def test_a_turned_cube_keeps_the_energy_of_its_vertex_texels():
     assert _kept_gains("cube", 64, "cube", 64).max() < 0.002
 
 
-@pytest.mark.parametrize("source, target", [("cube", "latlong"), ("cube", "angular"), ("cube", "sphere"),
-                                            ("angular", "latlong"), ("angular", "cube"), ("sphere", "latlong"),
-                                            ("sphere", "cube"), ("angular", "angular")])
-def test_a_sun_in_any_pixel_of_any_source_keeps_its_energy(source, target):
-    """Issue 9's bar, every pixel at once: a sun in any pixel of a cube, angular or mirror-ball source keeps its
-    energy within 0.2 % into a coarse target (32 pixels), the pair's flux correction applied
+_PAIRS = [("cube", "latlong"), ("cube", "angular"), ("cube", "sphere"), ("angular", "latlong"), ("angular", "cube"),
+          ("angular", "angular"), ("sphere", "latlong"), ("sphere", "cube"), ("sphere", "angular"),
+          ("latlong", "latlong"), ("latlong", "cube"), ("latlong", "angular"), ("latlong", "sphere")]
+_RIM_STRADDLED = pytest.mark.xfail(strict=True, reason="a mirror ball reduced to 64 pixels for a 16-pixel target: "
+                                   "its pixels ~10° wide by the rim straddle the measure's 25° (flux.GROUND_MARGIN)")
+
+
+@pytest.mark.parametrize("source, target, out_size", [(s, t, 32) for s, t in _PAIRS] + [
+    pytest.param(s, t, 16, marks=_RIM_STRADDLED) if s == "sphere" and t != "cube" else (s, t, 16)
+    for s, t in _PAIRS + [("sphere", "sphere")]])
+def test_a_sun_in_any_pixel_of_any_source_keeps_its_energy(source, target, out_size):
+    """Issue 9's bar, every pixel at once: a sun in any pixel of any source keeps its energy within 0.2 % into a
+    coarse target (16 or 32 pixels), the pair's flux correction applied where it is made
     (:mod:`lightprobe.envmap.flux`). Without it: a cube's corner texels 2.4 % into a lat-long of 32 rows, 1.8 % into
-    an angular map of 32, 0.24–0.42 % from discs (tests/test_flux.py keeps the uncorrected figures failing)."""
+    an angular map of 32, 0.24–0.42 % from discs, 0.26–0.74 % from a lat-long into 16–32-pixel discs
+    (tests/test_flux.py keeps the uncorrected figures failing). A mirror ball into 16-pixel targets other than a cube
+    is the known remainder (strict xfail: 19–24 % for a few pixels just outside the 25° rim margin)."""
     size = {"cube": 64}.get(source, 128)
-    worst = _kept_gains(source, size, target, 32).max()
+    worst = _kept_gains(source, size, target, out_size).max()
     assert worst < 2e-3, f"{100 * worst:.3f} %"
 
 

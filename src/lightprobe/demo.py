@@ -192,8 +192,10 @@ def section_speed(rep: Report) -> str:
               "with its four neighbours (by 0.5–4 % at the worst pixel), so a sun in any pixel of a cube, "
               "angular or mirror-ball source keeps its energy (a cube's corner texels into a lat-long of 32 rows "
               "were off by 2.4 %). A lat-long source holds 0.2 % into lat-long and cube targets by its own "
-              "construction; into angular maps and mirror balls it is not corrected (0.27–0.73 % at 32–64 "
-              "pixels) (<code>benchmarks/bench_energy.py</code>).</p>")
+              "construction, and into discs by its rates (lookups 0.4 pixels apart into an angular map, up to 32 "
+              "a side by a mirror ball's rim: 0.27 / 0.40 % → 0.11 / 0.08 % at full size); one read as up to "
+              "65 536 pixels into a disc (a 16–64-pixel one) is flux-corrected too, where its rim rings span "
+              "20–40° and no rate helps (0.26–0.74 % before) (<code>benchmarks/bench_energy.py</code>).</p>")
 
 
 def _every_pixel_gains() -> dict[str, tuple[float, float]]:
@@ -206,7 +208,9 @@ def _every_pixel_gains() -> dict[str, tuple[float, float]]:
               "latlong", 64),
              ("mirror ball 128 → angular 64 (was 74 %; 0.6 % before the flux correction)", "sphere", 128,
               "angular", 64),
-             ("lat-long 128 → mirror ball 64 (not flux-corrected)", "latlong", 128, "sphere", 64),
+             ("lat-long 128 → mirror ball 32 (0.73 % before the flux correction)", "latlong", 128, "sphere", 32),
+             ("lat-long 256 → angular 128 (not flux-corrected; 0.27 % at 0.5 pixels between lookups)", "latlong",
+              256, "angular", 128),
              ("cube 64 → cube 64 (corner texels: was 4.6 %; 0.86 % before the texel balance, 0.13 % before the "
               "flux correction)", "cube", 64, "cube", 64),
              ("cube 64 → lat-long 32 (2.4 % before the flux correction)", "cube", 64, "latlong", 32),

@@ -5,8 +5,9 @@ there is D_j = Σ_t Ω_t W_tj (:func:`lightprobe.envmap.resample.delivered`). It
 What is left between the two after the texel balance (:mod:`lightprobe.envmap.balance`) is the target's quadrature:
 k×k subsamples per target pixel sum a spline that is not constant over the pixel — a cube's corner texels seen from
 a lat-long of 32 rows (2.4 %), a disc target's coarse pixels (1.8 %), the rings where the per-pixel rate steps
-(0.2–0.4 %). It depends on the pair of grids, so it is measured for the pair, and the source is pre-filtered so that
-every pixel's effective delivery is Ω_j:
+(0.2–0.4 %), a lat-long's pixels read by the 20–40° rim rings of a 16–32-pixel disc (0.26–0.74 %). It depends on
+the pair of grids, so it is measured for the pair, and the source is pre-filtered so that every pixel's effective
+delivery is Ω_j (which conversions are: :func:`lightprobe.envmap.resample._flux_corrects`):
 
     x'_p = x_p + Σ_q w_pq (x_q − x_p),   w_pq ≥ 0 on the grid's edges (and a cube's seams), Σ_q w_pq < 1.
 
@@ -36,7 +37,10 @@ from ..layouts import CUBE, Layout, _padding_index
 
 GROUND_MARGIN = 20.0  # degrees from a disc's rim direction: pixels within it are not corrected. Inside the energy
 #                       measure's 25° (benchmarks/bench_energy.py, Resampler.energy_gains(rim_margin)), so a source
-#                       box-reduced for a tiny target is corrected up to the measure's edge but for a few pixels
+#                       box-reduced for a tiny target is corrected up to the measure's edge but for a few pixels: a
+#                       mirror ball reduced to 64 for a 16-pixel target has pixels ~10° wide there, and those whose
+#                       centre lies inside 20° hold suns outside 25° (19–24 % off). At 15° they would be corrected,
+#                       but every weight grows (3.5 → 13 % for mirror ball 128 → cube 32, 0.5 → 3 % at full size)
 DEAD_DELIVERY = 0.25  # a ground pixel the conversion delivers less than this share of its solid angle takes no flow
 MAX_WEIGHT = 0.5  # a pixel's weights are scaled down to this total where a flow through it would exceed it
 

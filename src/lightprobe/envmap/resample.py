@@ -60,14 +60,15 @@ def box_reduce(env: EnvMap) -> EnvMap:
     return EnvMap(owned(mean.astype(np.float32)), env.layout)
 
 
-def _reducible(env: EnvMap) -> bool:
-    """Whether a box reduction may halve the source: even sides, at least 8 pixels, and a lat-long keeps the
-    rational pole rows (:data:`lightprobe.envmap.pole_rows.MIN_HEIGHT`): a sun in a pole row of a source halved
-    under 48 rows gained 22 % of its energy; a tiny target reads the 48 rows with more subsamples instead."""
-    h, w = env.grid[-2:]
-    if isinstance(env.layout, Cross):
-        h = w = h // env.layout.aspect[1]
-    if env.layout.name == "latlong" and h // 2 < pole_rows.MIN_HEIGHT <= h:
+def _reducible(layout: Layout, grid: tuple[int, ...]) -> bool:
+    """Whether a box reduction may halve a source of this layout and grid: even sides, at least 8 pixels, and a
+    lat-long keeps the rational pole rows (:data:`lightprobe.envmap.pole_rows.MIN_HEIGHT`): a sun in a pole row of
+    a source halved under 48 rows gained 22 % of its energy; a tiny target reads the 48 rows with more subsamples
+    instead."""
+    h, w = grid[-2:]
+    if isinstance(layout, Cross):
+        h = w = h // layout.aspect[1]
+    if layout.name == "latlong" and h // 2 < pole_rows.MIN_HEIGHT <= h:
         return False
     return h % 2 == 0 and w % 2 == 0 and min(h, w) >= 8
 
@@ -141,7 +142,8 @@ def _prepared(source: EnvMap, target: Layout, size: int | None, samples: int | N
     grid = target.grid_shape(size)
     if isinstance(source.layout, Cross):  # exact rearrangement; the cube has a seamless padding
         source = EnvMap(source.layout.to_cube(source.data), CUBE)
-    while samples is None and _valid_ratio(source, target, grid) > MAX_FOOTPRINT_RATIO and _reducible(source):
+    while (samples is None and _valid_ratio(source, target, grid) > MAX_FOOTPRINT_RATIO
+           and _reducible(source.layout, source.grid)):
         source = box_reduce(source)
     k, steps = supersampling(source.layout, source.grid, target, grid, rotation, samples)
     return source, grid, k, steps
@@ -173,12 +175,23 @@ def supersampling(source: Layout, source_grid: tuple[int, ...], target: Layout, 
 DISCS = ("angular", "sphere")  # layouts whose rim spreads one direction over a ring of pixels
 
 
+# A mirror ball's pixels 25–40° from its rim direction span 10–30 rows of a lat-long source radially (the ball
+# squeezes its back hemisphere into the outer rings): at 16 subsamples a side their lookups were 0.7–2 rows apart and a
+# one-pixel sun there came out 0.3–0.7 % off (lat-long 256 → mirror ball 128 0.24 %, 2048 → 1024 0.40 %); they may
+# take 32 (0.08–0.19 %; the ring is thin: 1.1–1.3× the conversion's time, lat-long 2048 → 256–1024). Other sources into a mirror ball are
+# flux-corrected (:mod:`lightprobe.envmap.flux`) and keep 16, as the correction's adjoint lists every pixel's taps.
+LATLONG_SPHERE_MAX_SAMPLES = 32
+
+
 def adaptive_rate(source: Layout, target: Layout, k: int) -> int:
     """The most subsamples a side (k_max) a pixel may take, when the rate is automatic: where either layout is a
     disc, whose rim spreads one direction over a ring, or the source is a cube, whose corner texels are a fifth of
     its centre's, or the target is a lat-long, whose rows next to a pole are rings, each pixel takes its own rate
-    between k and :data:`lightprobe.envmap.polar.MAX_SAMPLES` (:func:`lightprobe.envmap.fused._rates`). Elsewhere k
-    (a lat-long into a cube: its polar rows are shortened by their reductions)."""
+    between k and :data:`lightprobe.envmap.polar.MAX_SAMPLES` (:data:`LATLONG_SPHERE_MAX_SAMPLES` from a lat-long
+    into a mirror ball) (:func:`lightprobe.envmap.fused._rates`). Elsewhere k (a lat-long into a cube: its polar
+    rows are shortened by their reductions)."""
+    if source.name == "latlong" and target.name == "sphere":
+        return max(k, LATLONG_SPHERE_MAX_SAMPLES)
     if source.name in DISCS or target.name in DISCS or source.name == "cube" or target.name == "latlong":
         return max(k, polar.MAX_SAMPLES)
     return k
@@ -286,18 +299,18 @@ def _plan(source: EnvMap, target: Layout, size: int | None, rotation, samples: i
     turn = np.eye(3) if rotation is None else np.asarray(rotation, dtype=np.float64)
     reduction = polar.no_reduction(source.grid[-2])
     k_max = _k_max(source, filled, k, samples)
+    data = source.data
+    corrected = _flux_stencil(source.layout, source.grid, target, grid, rotation, samples, (k, k_max),
+                              lambda omega_t: delivered(_Taps(source.layout, source.grid, filled,
+                                                              filled.size_of(grid), k, k_max, steps, rotation),
+                                                        source.grid, omega_t))
+    if corrected is not None:  # read-only, as a map's pixels are: the kernel is compiled for one array type
+        data = owned(corrected.apply(data))
     if src_kind == fused.LATLONG:  # read in place: columns wrap and rows reflect across the poles in the kernel
-        img, valid = np.ascontiguousarray(source.data)[None], np.ones((1, 1, 1), dtype=np.float32)
+        img, valid = np.ascontiguousarray(data)[None], np.ones((1, 1, 1), dtype=np.float32)
         if reduce_poles:
             reduction = polar.reduced_rows(img[0], polar.polar_levels(steps, source.grid, k))
     else:
-        data = source.data
-        corrected = _flux_stencil(source.layout, source.grid, target, grid, rotation, samples, (k, k_max),
-                                  lambda omega_t: delivered(_Taps(source.layout, source.grid, filled,
-                                                                  filled.size_of(grid), k, k_max, steps, rotation),
-                                                            source.grid, omega_t))
-        if corrected is not None:
-            data = corrected.apply(data)
         img, valid = source.layout.padded(data, prefilter=balance.prefilter_for(source.layout))
         if source.all_valid:  # a cube's padding is valid everywhere: no table of ones for the kernel to read
             valid = np.ones((1, 1, 1), dtype=np.float32)
@@ -357,7 +370,8 @@ class Resampler:
         out_grid = target.grid_shape(self.size)
         ratio = pixels / max(_valid_pixels(target, out_grid), 1)  # as resample's _valid_ratio measures it
         self.offsets, self._flux = None, None
-        if (samples is None and ratio > MAX_FOOTPRINT_RATIO) or fused.CODES.get(source_layout.name) is None \
+        reduced_first = samples is None and ratio > MAX_FOOTPRINT_RATIO and _reducible(source_layout, source_grid)
+        if reduced_first or fused.CODES.get(source_layout.name) is None \
                 or fused.CODES.get(_face_layout(target).name) is None:
             return  # not cached: __call__ resamples directly
         k, steps = supersampling(source_layout, tuple(source_grid), target, out_grid, rotation, samples)
@@ -445,8 +459,8 @@ class Resampler:
         if self.offsets is None:
             return resample(env, self.target, self.size, rotation=self.rotation, samples=self.samples)
         data = self.layout.to_cube(env.data) if isinstance(self.layout, Cross) else env.data
-        if self._flux is not None:  # as resample: the flux correction, then the balance
-            data = self._flux.apply(data)
+        if self._flux is not None:  # as resample: the flux correction (read-only, as resample's), then the balance
+            data = owned(self._flux.apply(data))
         if balance.prefilter_for(self.layout) is not None:  # the taps read a cube's balanced texels, as resample
             data = balance.balanced_faces(np.asarray(data, dtype=np.float32))
         reduced = (polar.no_reduction()[1] if self._levels is None
@@ -563,16 +577,32 @@ _FLUX_LOCK = threading.Lock()
 _FLUX_CACHE_BYTES = 256 << 20  # the corrections a process keeps (a batch converts one pair of grids many times)
 
 
+# Lat-long sources are flux-corrected into discs up to this many pixels (as the conversion reads them, after any box
+# reduction): a 16–32-pixel disc's outer rings span 20–40° each, and a one-pixel sun read by them came out 0.26–0.74 %
+# off (no rate fixes a pixel that straddles the rim). A disc of 64 pixels or more from a larger source holds 0.2 %
+# by its rates (LATLONG_SPHERE_MAX_SAMPLES, fused.LATLONG_ANGULAR_SPACING), and a 4k lat-long's correction would
+# hold ~100 B a pixel while it is made, more than convert may (tests/test_limits.py): there it is not made.
+LATLONG_FLUX_MAX_PIXELS = 1 << 16
+
+
+def _flux_corrects(source_layout: Layout, source_pixels: int, target: Layout) -> bool:
+    """Whether a conversion from ``source_layout`` (``source_pixels`` as read) into ``target`` is flux-corrected
+    (with its rate left automatic): every source but a lat-long, which is into a disc only, up to
+    :data:`LATLONG_FLUX_MAX_PIXELS` (into a lat-long or a cube its conversions keep a sun's energy by their own
+    construction — the polar rows' reductions and rational weights, measured in tests/test_resample.py)."""
+    if source_layout.name != "latlong":
+        return True
+    return target.name in DISCS and source_pixels <= LATLONG_FLUX_MAX_PIXELS
+
+
 def _flux_stencil(source_layout: Layout, source_grid: tuple[int, ...], target: Layout, filled_grid, rotation,
                   samples: int | None, rates: tuple[int, int], delivery_of) -> flux.Stencil | None:
-    """The flux correction of this conversion (:mod:`lightprobe.envmap.flux`), or None where none is made: a
-    lat-long source (its conversions keep a sun's energy by their own construction — the polar rows' reductions
-    and rational weights, measured in tests/test_resample.py) and a rate given by hand (``samples``: the kernel
-    compared as it is). ``rates`` (k, k_max) are the conversion's; ``delivery_of(omega_t)`` gives each source
-    pixel's delivery, flat, as the kernel reads them. Kept for the last pairs of grids, up to
-    :data:`_FLUX_CACHE_BYTES` of weights, keyed by the layouts themselves (a turned mirror ball is named "sphere"
-    too)."""
-    if samples is not None or source_layout.name == "latlong":
+    """The flux correction of this conversion (:mod:`lightprobe.envmap.flux`), or None where none is made (see
+    :func:`_flux_corrects`; nor where the rate is given by hand, ``samples``: the kernel compared as it is).
+    ``rates`` (k, k_max) are the conversion's; ``delivery_of(omega_t)`` gives each source pixel's delivery, flat,
+    as the kernel reads them. Kept for the last pairs of grids, up to :data:`_FLUX_CACHE_BYTES` of weights, keyed by
+    the layouts themselves (a turned mirror ball is named "sphere" too)."""
+    if samples is not None or not _flux_corrects(source_layout, math.prod(source_grid), _face_layout(target)):
         return None
     target = _face_layout(target)  # a cross target is filled as cube faces
     key = (source_layout, source_grid, target, tuple(filled_grid), rates,
@@ -665,12 +695,13 @@ def check_size(layout: Layout, size: int) -> int:
 
 def resample_memory(source_pixels: int, target_pixels: int, target: Layout, source: Layout | None = None) -> int:
     """Estimated peak memory (bytes) of :func:`resample` from ``source_pixels`` to ``target_pixels`` of ``target``
-    (beyond the source map itself); a ``source`` other than a lat-long (or not named) adds its flux correction's
-    deliveries, flows and weights (:func:`_flux_stencil`: measured 75–120 B a source pixel, more where a face's
-    side is just past a power of two)."""
+    (beyond the source map itself); a ``source`` whose conversions are flux-corrected (:func:`_flux_corrects`: all
+    but a lat-long's, save small ones into discs), or not named, adds its correction's deliveries, flows and
+    weights (:func:`_flux_stencil`: measured 75–120 B a source pixel, more where a face's side is just past a power
+    of two)."""
     per_target = RESAMPLE_BYTES_PER_TARGET_PIXEL.get(target.name, RESAMPLE_BYTES_PER_TARGET_PIXEL_DEFAULT)
     per_source = RESAMPLE_BYTES_PER_SOURCE_PIXEL
-    if source is None or source.name != "latlong":
+    if source is None or _flux_corrects(source, source_pixels, _face_layout(target)):
         per_source += FLUX_BYTES_PER_SOURCE_PIXEL
     return source_pixels * per_source + target_pixels * per_target
 
@@ -726,7 +757,9 @@ def _separable_delivery(matrices: separable.Separable, omega_t: np.ndarray) -> n
 
 
 def _expanded_gains(layout: Layout, grid: tuple[int, ...], target: Layout, size: int, rotation) -> np.ndarray:
-    """energy_gains of a source the conversion box-reduces first: its reduction's, each block's for its pixels."""
+    """energy_gains of a source the conversion box-reduces first: its reduction's, each block's for its pixels.
+    The Resampler of the halved grid halves it again only where :func:`resample` would (:func:`_reducible`): this
+    measure once halved lat-longs under 48 rows, which no conversion does, and reported their pole rows +25 %."""
     reduced = box_reduce(EnvMap(np.zeros(grid + (3,), np.float32), layout))
     gains = Resampler(layout, reduced.grid, target, size, rotation=rotation).energy_gains()
     gains = np.repeat(np.repeat(gains, 2, axis=-2), 2, axis=-1)
