@@ -115,11 +115,27 @@ def test_cross_and_cube_hold_the_same_texels(cross, n):
     np.testing.assert_array_equal(cross.to_cube(image), faces)
     assert (image.sum(axis=-1) > 0).sum() == 6 * n * n  # a bijection onto the six tiles
     grid = cross.grid_shape(n)
+    np.testing.assert_array_equal(cross.valid_mask(grid), cross.solid_angles(grid) > 0)
     d_cross = cross.directions(grid)[cross.valid_mask(grid)]
     d_cube = CUBE.directions(CUBE.grid_shape(n)).reshape(-1, 3)
     # same set of directions, up to order
     key = lambda d: np.lexsort(np.round(d, 9).T)  # noqa: E731
     np.testing.assert_allclose(d_cross[key(d_cross)], d_cube[key(d_cube)], atol=1e-12)
+
+
+@pytest.mark.parametrize("cross", [CROSS, HCROSS], ids=["cross", "hcross"])
+@pytest.mark.parametrize("n", [1, 2, 7, 32])
+def test_each_tile_texel_shows_its_face_texels_direction(cross, n):
+    """to_cube turns each tile by a symmetry of the square found once at 3 texels (layouts._tile_turns): at every
+    size each cube texel comes from the cross pixel of the same direction, and from_cube puts it back there."""
+    grid = cross.grid_shape(n)
+    np.testing.assert_allclose(cross.to_cube(cross.directions(grid)), CUBE.directions(CUBE.grid_shape(n)),
+                               atol=1e-12)
+    cube_dirs = CUBE.directions(CUBE.grid_shape(n))
+    back = cross.from_cube(cube_dirs)
+    valid = cross.valid_mask(grid)
+    np.testing.assert_allclose(back[valid], cross.directions(grid)[valid], atol=1e-12)
+    assert (back[~valid] == 0).all()
 
 
 def test_sphere_layout_with_camera_axes():

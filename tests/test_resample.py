@@ -664,3 +664,24 @@ def test_the_symmetric_cube_pass_is_not_taken_where_it_does_not_hold():
     odd = EnvMap(np.ones((15, 30, 3), np.float32), LATLONG)  # W/4 not whole
     assert _plan(odd, CUBE, 8, None, 3).cube_rows is None
     assert _plan(src, LATLONG, 8, None, 3).cube_rows is None
+
+
+@pytest.mark.parametrize("target", ["cross", "hcross"])
+@pytest.mark.parametrize("source, rotation", [("latlong", None), ("latlong", TURN), ("cube", None)])
+def test_a_cross_is_streamed_in_strips_equal_to_the_whole_map(target, source, rotation):
+    """resample_strips into a cross computes each strip's rows from the faces' rows (its tiles are flipped faces):
+    strips of a few rows that cut the tiles part-way give the whole map's image, empty tiles 0."""
+    from lightprobe.envmap.files import to_image
+    from lightprobe.envmap.resample import resample_strips
+    from lightprobe.layouts import layout
+
+    cross = layout(target)
+    assert cross.rows_are_face_rows()
+    data = np.random.default_rng(5).gamma(0.5, 1.0, size=(64, 128, 3)).astype(np.float32)
+    src = EnvMap(data, LATLONG) if source == "latlong" else EnvMap(data, LATLONG).to("cube", 24)
+    whole = to_image(resample(src, cross, 12, rotation=rotation))
+    shape, strips = resample_strips(src, cross, 12, rotation=rotation, strip_pixels=5 * whole.shape[1])
+    image = np.concatenate([block for _, block in strips])
+    assert shape == whole.shape[:2] == image.shape[:2]
+    np.testing.assert_allclose(image, whole, rtol=0, atol=1e-6 * float(whole.max()))
+    assert (image[~cross.valid_mask(shape)] == 0).all()

@@ -329,9 +329,9 @@ def _disc_pixel_classes(n: int) -> tuple[np.ndarray, np.ndarray]:
 
 @lru_cache(maxsize=8)
 def _disc_valid_mask(layout: _DiscLayout, n: int) -> np.ndarray:
-    interior, rim = _disc_pixel_classes(n)
+    mask, rim = _disc_pixel_classes(n)  # the interior, and the rim pixels whose share of the disc is not 0
     rows, cols = np.nonzero(rim)
-    mask = interior.copy()
+    del rim
     mask[rows, cols] = _rim_solid_angles(layout, n, rows, cols) > 0
     mask.setflags(write=False)
     return mask
@@ -622,18 +622,39 @@ class Cross(Layout):
             omega[r * n : (r + 1) * n, c * n : (c + 1) * n] = texels
         return omega
 
+    def valid_mask(self, grid):
+        """The six tiles (a bool per pixel: no solid angles at float64, 134 MB for a 4k map's cross)."""
+        self.check_grid(grid)
+        n = grid[0] // self.aspect[1]
+        mask = np.zeros(grid, dtype=bool)
+        for r, c in self._tiles:
+            mask[r * n:(r + 1) * n, c * n:(c + 1) * n] = True
+        return mask
+
     def to_cube(self, data: np.ndarray) -> np.ndarray:
         """Rearrange a cross image into cube faces (6, N, N, C). Exact: both hold the same texel centres."""
         n = data.shape[0] // self.aspect[1]
-        rows, cols = _cross_to_cube_index(self, n)
-        return data[rows, cols]
+        out = np.empty((6, n, n) + data.shape[2:], dtype=data.dtype)
+        for face, (row, col, turn) in enumerate(_tile_turns(self)):
+            out[face] = _unturned(data[row * n:(row + 1) * n, col * n:(col + 1) * n], *turn)
+        return out
+
+    def tile_turns(self) -> tuple[tuple[int, int, tuple[bool, bool, bool]], ...]:
+        """Per cube face: its tile (row, column) and the (transpose, flip rows, flip columns) that turn the face's
+        texels into the tile (see :meth:`from_cube`)."""
+        return _tile_turns(self)
+
+    def rows_are_face_rows(self) -> bool:
+        """Whether every tile is its face flipped, not transposed: each image row is then rows of faces (a
+        streamed writer computes them row by row)."""
+        return not any(turn[0] for _, _, turn in _tile_turns(self))
 
     def from_cube(self, faces: np.ndarray) -> np.ndarray:
         """Inverse of :meth:`to_cube`; tiles outside the cross are 0."""
         n = faces.shape[1]
-        rows, cols = _cross_to_cube_index(self, n)
         out = np.zeros((n * self.aspect[1], n * self.aspect[0]) + faces.shape[3:], dtype=faces.dtype)
-        out[rows, cols] = faces
+        for face, (row, col, turn) in enumerate(_tile_turns(self)):
+            out[row * n:(row + 1) * n, col * n:(col + 1) * n] = _turned(faces[face], *turn)
         return out
 
     def sampler(self, data, kernel="bilinear", prefilter=None):
@@ -641,7 +662,39 @@ class Cross(Layout):
         return CUBE.sampler(self.to_cube(data), kernel, prefilter)
 
 
-@lru_cache(maxsize=16)
+@lru_cache(maxsize=4)
+def _tile_turns(layout: Cross) -> tuple[tuple[int, int, tuple[bool, bool, bool]], ...]:
+    """Per cube face, (tile row, tile column, (transpose, flip rows, flip columns)): the symmetry of the square that
+    turns the face's texels into its tile of the cross (:func:`_turned`). A tile holds the same texel centres as its
+    face, so it is one of the square's eight symmetries at every size: found once, from the directions of a
+    3-texel cube (:func:`_cross_to_cube_index`), instead of a direction per texel at the map's size (a 4k map's
+    cube of 1182 had 1.2 GB of float64 directions and indices for a cross target)."""
+    n = 3
+    rows, cols = _cross_to_cube_index(layout, n)
+    texels = np.arange(n * n).reshape(n, n)
+    turns = []
+    for face in range(6):
+        row, col = int(rows[face].min()) // n, int(cols[face].min()) // n
+        tile = np.empty((n, n), np.int64)
+        tile[rows[face] - row * n, cols[face] - col * n] = texels
+        turn = next(t for t in np.ndindex(2, 2, 2) if np.array_equal(_turned(texels, *map(bool, t)), tile))
+        turns.append((row, col, tuple(map(bool, turn))))
+    return tuple(turns)
+
+
+def _turned(face: np.ndarray, transpose: bool, flip_rows: bool, flip_columns: bool) -> np.ndarray:
+    """A face's texels (N, N, …) as its tile shows them: transposed, then flipped (a view)."""
+    out = face.swapaxes(0, 1) if transpose else face
+    return out[::-1 if flip_rows else 1, ::-1 if flip_columns else 1]
+
+
+def _unturned(tile: np.ndarray, transpose: bool, flip_rows: bool, flip_columns: bool) -> np.ndarray:
+    """The inverse of :func:`_turned` (a view): unflipped, then transposed back."""
+    out = tile[::-1 if flip_rows else 1, ::-1 if flip_columns else 1]
+    return out.swapaxes(0, 1) if transpose else out
+
+
+@lru_cache(maxsize=4)
 def _cross_to_cube_index(layout: Cross, n: int):
     """For every cube texel (6, N, N), the cross pixel (row, col) that holds the same direction."""
     grid = CUBE.grid_shape(n)

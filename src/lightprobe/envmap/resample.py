@@ -109,11 +109,13 @@ def resample_strips(source: EnvMap, target: Layout, size: int | None = None, *, 
     about ``strip_pixels`` pixels, top to bottom. The same values as :func:`resample`; memory is one strip, not the
     map. Crosses (whose tiles are turned) and layouts the kernel does not know come as one strip."""
     plan = _plan(source, target, size, rotation, samples)
-    if plan is None or isinstance(target, Cross):
+    if plan is None or (isinstance(target, Cross) and not target.rows_are_face_rows()):
         from .files import to_image
 
         image = to_image(resample(source, target, size, rotation=rotation, samples=samples))
         return image.shape[:2], iter([(0, image)])
+    if isinstance(target, Cross):
+        return _cross_strips(plan, target, strip_pixels)
     faces, h, w = plan.lines_shape[0] // plan.height, plan.height, plan.lines_shape[1]
     rows = max(1, strip_pixels // (faces * w))
 
@@ -129,6 +131,31 @@ def resample_strips(source: EnvMap, target: Layout, size: int | None = None, *, 
             yield top, block.transpose(1, 0, 2, 3).reshape(n, faces * w, 3)  # a cube file's rows: faces side by side
 
     return (h, faces * w), strips()
+
+
+def _cross_strips(plan: _Plan, target: Cross, strip_pixels: int):
+    """resample_strips into a cross whose tiles are its faces flipped (no transposed tile): each strip's rows are
+    rows of the faces in its band of tiles, computed as the strip needs them — no whole cube, no whole cross (a
+    4k map's cross was 1.5 GB at the peak, 200 MB of it the cross image)."""
+    n = plan.height
+    shape = target.grid_shape(n)
+    rows = max(1, strip_pixels // shape[1])
+
+    def strips():
+        for top in track(range(0, shape[0], rows), f"resampling to {target.name}", total=-(-shape[0] // rows)):
+            block = np.zeros((min(rows, shape[0] - top), shape[1], 3), dtype=np.float32)
+            for face, (tile_row, tile_col, (_, flip_rows, flip_cols)) in enumerate(target.tile_turns()):
+                first, last = max(top, tile_row * n), min(top + len(block), (tile_row + 1) * n)
+                if first >= last:
+                    continue
+                a, b = first - tile_row * n, last - tile_row * n  # the tile's rows; the face's, flipped or not
+                lines = np.empty((b - a, n, 3), dtype=np.float32)
+                plan.fill(lines, face * n + (n - b if flip_rows else a))
+                block[first - top:last - top, tile_col * n:(tile_col + 1) * n] = \
+                    lines[::-1 if flip_rows else 1, ::-1 if flip_cols else 1]
+            yield top, block
+
+    return shape, strips()
 
 
 def _prepared(source: EnvMap, target: Layout, size: int | None, samples: int | None, rotation=None):
@@ -316,7 +343,7 @@ def _plan(source: EnvMap, target: Layout, size: int | None, rotation, samples: i
             valid = np.ones((1, 1, 1), dtype=np.float32)
     all_valid = filled.valid_fraction == 1.0  # latlong, cube: no per-pixel mask
     tgt_valid = (np.ones((1, 1, 1), dtype=np.uint8) if all_valid
-                 else filled.valid_mask(grid).reshape(faces).astype(np.uint8))
+                 else filled.valid_mask(grid).reshape(faces).view(np.uint8))  # bool as bytes: no copy
     args = (src_kind, img, valid, *reduction, _axes(source.layout), source.grid[-2], source.grid[-1],
             fused.CODES[filled.name], _axes(filled), faces[1], tgt_valid, all_valid, k, k_max, turn)
     by_symmetry = (symmetric and src_kind == fused.LATLONG and filled.name == "cube"
@@ -518,7 +545,7 @@ class _Taps:
                 valid = np.ones((1, 1, 1), np.float32)
         all_valid = filled.valid_fraction == 1.0
         tgt_valid = (np.ones((1, 1, 1), np.uint8) if all_valid
-                     else filled.valid_mask(grid).reshape(faces).astype(np.uint8))
+                     else filled.valid_mask(grid).reshape(faces).view(np.uint8))  # bool as bytes: no copy
         turn = np.eye(3) if rotation is None else np.asarray(rotation, dtype=np.float64)
         self.kernel_args = (src_kind, src_shape, valid, index_map, levels, row_offsets, caps, _axes(source_layout),
                             source_grid[-2], source_grid[-1], fused.CODES[filled.name], _axes(filled), faces[1],
