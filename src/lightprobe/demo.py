@@ -145,6 +145,7 @@ def section_speed(rep: Report) -> str:
     polar = _polar_sun_errors()
     pole_rows = _pole_row_targets()
     rep.timings.update({f"speed {k}": v for k, v in timed.items()})
+    memory = _convert_peak_memory(big, rep.out)
     rows = [["lat-long 2048×1024 → cube 6×512², one compiled pass (each footprint read for its 8 images under "
              "the cube's symmetries)", f"{1000 * timed['direct']:.0f} ms",
              f"{timed['direct'] / timed['pass']:.1f}× one numpy pass over the source (the benchmark: 2.5–2.6× a "
@@ -153,7 +154,11 @@ def section_speed(rep: Report) -> str:
              f"{1000 * timed['build']:.0f} ms, {conv.nbytes / 2**20:.0f} MiB)", f"{1000 * timed['cached']:.0f} ms",
              f"{timed['direct'] / timed['cached']:.1f}× faster than direct; equal to {agree:.0e} of the maximum"],
             *[[f"SH projection, order {l}", f"{1000 * timed[f'sh{l}']:.1f} ms",
-               f"{timed[f'sh{l}'] / timed['pass']:.1f}× one numpy pass over the pixels"] for l in (2, 8, 16)]]
+               f"{timed[f'sh{l}'] / timed['pass']:.1f}× one numpy pass over the pixels"] for l in (2, 8, 16)],
+            ["peak resident memory of lightprobe convert, that map into a cube, in a fresh process",
+             f"{memory['released']:.0f} MiB", f"{memory['kept']:.0f} MiB with LLVM's pages kept resident (its "
+             "kernels linked on the map itself, not on a small one first); a 4096×2048 map: 257 against 321 MiB, "
+             "2.7× the map (tests/test_limits.py)"]]
     return ("<h2>Speed</h2><p>Measured now, on this machine, as ratios (the benchmarks compare with peers: "
             "<code>benchmarks/bench_peers.py</code>). A batch of maps of one size converts with cached footprint "
             "weights: one gather per map. The accuracy is the same: a sun in one pixel on a cube corner, holding "
@@ -196,6 +201,34 @@ def section_speed(rep: Report) -> str:
               "a side by a mirror ball's rim: 0.27 / 0.40 % → 0.11 / 0.08 % at full size); one read as up to "
               "65 536 pixels into a disc (a 16–64-pixel one) is flux-corrected too, where its rim rings span "
               "20–40° and no rate helps (0.26–0.74 % before) (<code>benchmarks/bench_energy.py</code>).</p>")
+
+
+def _convert_peak_memory(env, folder) -> dict[str, float]:
+    """Peak resident memory (MiB) of ``lightprobe convert`` of ``env`` into a cube in a fresh process: as it runs
+    (kernels linked on a small map, then LLVM's pages let go: :func:`lightprobe.jit.release_compiler_pages`), and
+    with that step left out (what it removes). Each run is a child of a small wrapper, whose getrusage of its
+    children is then the command's own peak."""
+    import os
+    import subprocess
+    import sys
+
+    from .io import write_image
+
+    src, dst = folder / "convert_memory.exr", folder / "convert_memory_cube.exr"
+    write_image(src, env.data)
+    wrapper = ("import resource, subprocess, sys\nsubprocess.run(sys.argv[1:], check=True, capture_output=True)\n"
+               "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)\n")
+    peaks = {}
+    for mode, step in (("released", ""), ("kept", "convert._link_kernels = lambda *args: None\n")):
+        command = ("import sys\nimport lightprobe.cli.convert as convert\n" + step
+                   + "from lightprobe.cli import main\nsys.exit(main(sys.argv[1:]))\n")
+        out = subprocess.run([sys.executable, "-c", wrapper, sys.executable, "-c", command, "convert", str(src),
+                              str(dst), "--to", "cube"], capture_output=True, text=True, check=True,
+                             env={**os.environ, "LIGHTPROBE_PROGRESS": "0"})
+        peaks[mode] = int(out.stdout.split()[-1]) / 1024
+    src.unlink()
+    dst.unlink()
+    return peaks
 
 
 def _every_pixel_gains() -> dict[str, tuple[float, float]]:
