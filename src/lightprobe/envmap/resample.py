@@ -350,7 +350,7 @@ def _plan(source: EnvMap, target: Layout, size: int | None, rotation, samples: i
                    and cube_symmetry.applies(source.grid[-1], rotation))
     cube_rows = (img, *reduction, faces[1], k, cube_symmetry._kinds()) if by_symmetry else None
     by_rows = None
-    if reduce_poles and separable.applies(source.layout, filled, rotation):
+    if reduce_poles and separable.applies(source.layout, filled, rotation) and corrected is None:
         by_rows = (separable.Separable(source.grid, grid[-2:], k, rotation), source.data)
     return _Plan(target, filled, grid, faces[1], args, cube_rows, by_rows)
 
@@ -413,7 +413,8 @@ class Resampler:
 
     def _build(self, source_layout: Layout, source_grid, out_grid, k: int, k_max: int, steps: polar.Steps) -> None:
         filled = _face_layout(self.target)
-        if separable.applies(source_layout, filled, self.rotation):  # as resample does it
+        corrected = self.samples is None and _flux_corrects(source_layout, math.prod(source_grid), filled)
+        if separable.applies(source_layout, filled, self.rotation) and not corrected:  # as resample does it
             self._separable = separable.Separable(tuple(source_grid), tuple(out_grid[-2:]), k, self.rotation)
             return
         taps = _Taps(source_layout, tuple(source_grid), self.target, self.size, k, k_max, steps, self.rotation)
@@ -614,10 +615,14 @@ LATLONG_FLUX_MAX_PIXELS = 1 << 16
 
 def _flux_corrects(source_layout: Layout, source_pixels: int, target: Layout) -> bool:
     """Whether a conversion from ``source_layout`` (``source_pixels`` as read) into ``target`` is flux-corrected
-    (with its rate left automatic): every source but a lat-long, which is into a disc only, up to
-    :data:`LATLONG_FLUX_MAX_PIXELS` (into a lat-long or a cube its conversions keep a sun's energy by their own
-    construction — the polar rows' reductions and rational weights, measured in tests/test_resample.py)."""
+    (with its rate left automatic): every source but a lat-long; a lat-long into a disc up to
+    :data:`LATLONG_FLUX_MAX_PIXELS`, and into anything when it has fewer rows than the rational pole rows need
+    (:data:`lightprobe.envmap.pole_rows.MIN_HEIGHT`: its first rows keep the plain spline, a sun there +22–25 %).
+    Into a lat-long or a cube a larger lat-long keeps a sun's energy by its own construction — the polar rows'
+    reductions and rational weights, measured in tests/test_resample.py."""
     if source_layout.name != "latlong":
+        return True
+    if math.isqrt(source_pixels // 2) < pole_rows.MIN_HEIGHT:  # a lat-long of H rows has 2H² pixels
         return True
     return target.name in DISCS and source_pixels <= LATLONG_FLUX_MAX_PIXELS
 
