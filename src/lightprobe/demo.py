@@ -241,6 +241,8 @@ def _every_pixel_gains() -> dict[str, tuple[float, float]]:
               "latlong", 64),
              ("mirror ball 128 → angular 64 (was 74 %; 0.6 % before the flux correction)", "sphere", 128,
               "angular", 64),
+             ("mirror ball 128 → angular 16 (was 18.8 %: halved to 64 for so small a target)", "sphere", 128,
+              "angular", 16),
              ("lat-long 128 → mirror ball 32 (0.73 % before the flux correction)", "latlong", 128, "sphere", 32),
              ("lat-long 256 → angular 128 (not flux-corrected; 0.27 % at 0.5 pixels between lookups)", "latlong",
               256, "angular", 128),

@@ -36,11 +36,11 @@ import numpy as np
 from ..layouts import CUBE, Layout, _padding_index
 
 GROUND_MARGIN = 20.0  # degrees from a disc's rim direction: pixels within it are not corrected. Inside the energy
-#                       measure's 25° (benchmarks/bench_energy.py, Resampler.energy_gains(rim_margin)), so a source
-#                       box-reduced for a tiny target is corrected up to the measure's edge but for a few pixels: a
-#                       mirror ball reduced to 64 for a 16-pixel target has pixels ~10° wide there, and those whose
-#                       centre lies inside 20° hold suns outside 25° (19–24 % off). At 15° they would be corrected,
-#                       but every weight grows (3.5 → 13 % for mirror ball 128 → cube 32, 0.5 → 3 % at full size)
+#                       measure's 25° (benchmarks/bench_energy.py, Resampler.energy_gains(rim_margin)): a pixel there
+#                       may be 5° wide radially and still hold no sun outside 25° — why a mirror ball is not halved
+#                       under 128 pixels (resample.SPHERE_MIN_SIDE: at 64 its pixels are ~20° wide there, and suns
+#                       just outside 25° came out 19–24 % off). At 15° every weight grows (3.5 → 13 % for mirror
+#                       ball 128 → cube 32, 0.5 → 3 % at full size)
 DEAD_DELIVERY = 0.25  # a ground pixel the conversion delivers less than this share of its solid angle takes no flow
 MAX_WEIGHT = 0.5  # a pixel's weights are scaled down to this total where a flow through it would exceed it
 

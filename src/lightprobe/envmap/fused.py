@@ -568,12 +568,24 @@ def _source_point(tgt_kind, tgt_axes, face, u, v, rotation, src_kind, src_axes, 
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def _on_disc(u, v):  # pragma: no cover - compiled
+    """Whether point (u, v) of a disc layout's image lies on its disc (as :func:`target_direction` decides)."""
+    return math.hypot(2.0 * u - 1.0, 1.0 - 2.0 * v) <= 1.0
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def _source_step(tgt_kind, tgt_axes, face, u0, v0, u1, v1, rotation, src_kind, src_axes, src_h,
                  src_w):  # pragma: no cover - compiled
     """How far apart, in source pixels, the source positions of target points (u0, v0) and (u1, v1) land. On a
     cube the second is placed on the first one's face plane, extended past its edge if need be (a step across an
     edge is still a step). A lat-long's columns count at their width, sin θ of a column: nearer a pole the polar
-    reductions (:mod:`lightprobe.envmap.polar`) serve, not more lookups."""
+    reductions (:mod:`lightprobe.envmap.polar`) serve, not more lookups. No step (0) when either point lies off a
+    disc target: both would show its rim direction, rim-clamped, and a disc source places that direction anywhere
+    on its own rim as rounding falls — a mirror ball into a mirror ball gave such points steps of 0 to 30 pixels,
+    whose rates then graded their valid neighbours' cells (:func:`_pixel_rates`) differently from kernel to kernel,
+    and the cached taps and the direct pass differed by up to 10 % on rim pixels."""
+    if tgt_kind != LATLONG and tgt_kind != CUBE and not (_on_disc(u0, v0) and _on_disc(u1, v1)):
+        return 0.0
     f0, x0, y0, _, _, _ = _source_point(tgt_kind, tgt_axes, face, u0, v0, rotation, src_kind, src_axes, src_h, src_w)
     f1, x1, y1, rx, ry, rz = _source_point(tgt_kind, tgt_axes, face, u1, v1, rotation, src_kind, src_axes, src_h,
                                            src_w)

@@ -60,15 +60,25 @@ def box_reduce(env: EnvMap) -> EnvMap:
     return EnvMap(owned(mean.astype(np.float32)), env.layout)
 
 
+# A mirror ball squeezes its back hemisphere into its outer rings: θ from its rim direction, a ring is 2 / sin(θ/2)
+# times wider in angle than in the image — 10° a pixel at 20° from the rim for a ball of 128 pixels, 20° at 64. The
+# flux correction leaves the pixels within flux.GROUND_MARGIN (20°) of the rim alone, and a ball halved to 64 for a
+# 16-pixel target left suns in pixels just outside the 25° rim margin 19–24 % off: their 64-pixel blocks straddle
+# it. A smaller ball is not halved; a tiny target reads its 128 pixels with more subsamples instead.
+SPHERE_MIN_SIDE = 128
+
+
 def _reducible(layout: Layout, grid: tuple[int, ...]) -> bool:
-    """Whether a box reduction may halve a source of this layout and grid: even sides, at least 8 pixels, and a
-    lat-long keeps the rational pole rows (:data:`lightprobe.envmap.pole_rows.MIN_HEIGHT`): a sun in a pole row of
+    """Whether a box reduction may halve a source of this layout and grid: even sides, at least 8 pixels, a
+    lat-long keeps the rational pole rows (:data:`lightprobe.envmap.pole_rows.MIN_HEIGHT`: a sun in a pole row of
     a source halved under 48 rows gained 22 % of its energy; a tiny target reads the 48 rows with more subsamples
-    instead."""
+    instead), and a mirror ball keeps :data:`SPHERE_MIN_SIDE` pixels."""
     h, w = grid[-2:]
     if isinstance(layout, Cross):
         h = w = h // layout.aspect[1]
     if layout.name == "latlong" and h // 2 < pole_rows.MIN_HEIGHT <= h:
+        return False
+    if layout.name == "sphere" and h // 2 < SPHERE_MIN_SIDE:
         return False
     return h % 2 == 0 and w % 2 == 0 and min(h, w) >= 8
 
@@ -205,8 +215,9 @@ DISCS = ("angular", "sphere")  # layouts whose rim spreads one direction over a 
 # A mirror ball's pixels 25–40° from its rim direction span 10–30 rows of a lat-long source radially (the ball
 # squeezes its back hemisphere into the outer rings): at 16 subsamples a side their lookups were 0.7–2 rows apart and a
 # one-pixel sun there came out 0.3–0.7 % off (lat-long 256 → mirror ball 128 0.24 %, 2048 → 1024 0.40 %); they may
-# take 32 (0.08–0.19 %; the ring is thin: 1.1–1.3× the conversion's time, lat-long 2048 → 256–1024). Other sources into a mirror ball are
-# flux-corrected (:mod:`lightprobe.envmap.flux`) and keep 16, as the correction's adjoint lists every pixel's taps.
+# take 32 (0.08–0.19 %; the ring is thin: 1.1–1.3× the conversion's time, lat-long 2048 → 256–1024). Other sources
+# into a mirror ball are flux-corrected (:mod:`lightprobe.envmap.flux`) and keep 16, as the correction's adjoint lists
+# every pixel's taps.
 LATLONG_SPHERE_MAX_SAMPLES = 32
 
 
@@ -216,9 +227,14 @@ def adaptive_rate(source: Layout, target: Layout, k: int) -> int:
     its centre's, or the target is a lat-long, whose rows next to a pole are rings, each pixel takes its own rate
     between k and :data:`lightprobe.envmap.polar.MAX_SAMPLES` (:data:`LATLONG_SPHERE_MAX_SAMPLES` from a lat-long
     into a mirror ball) (:func:`lightprobe.envmap.fused._rates`). Elsewhere k (a lat-long into a cube: its polar
-    rows are shortened by their reductions)."""
+    rows are shortened by their reductions). A mirror ball source may take 2k: kept at :data:`SPHERE_MIN_SIDE`
+    pixels for a tiny target, its base rate is high and its outer rings need more again — 128 → angular 16 at 16 a
+    side left its pixels 25–35° from the rim up to 74 % off before the flux correction, more than its capped weights
+    can mend (23 % after); at 32, exact (weights ≤ 21 %). Halved to 64 it had k = 8 and 16 as well."""
     if source.name == "latlong" and target.name == "sphere":
         return max(k, LATLONG_SPHERE_MAX_SAMPLES)
+    if source.name == "sphere":
+        return max(2 * k, polar.MAX_SAMPLES)
     if source.name in DISCS or target.name in DISCS or source.name == "cube" or target.name == "latlong":
         return max(k, polar.MAX_SAMPLES)
     return k
@@ -413,7 +429,7 @@ class Resampler:
 
     def _build(self, source_layout: Layout, source_grid, out_grid, k: int, k_max: int, steps: polar.Steps) -> None:
         filled = _face_layout(self.target)
-        corrected = self.samples is None and _flux_corrects(source_layout, math.prod(source_grid), filled)
+        corrected = _corrected(source_layout, source_grid, filled, self.samples)
         if separable.applies(source_layout, filled, self.rotation) and not corrected:  # as resample does it
             self._separable = separable.Separable(tuple(source_grid), tuple(out_grid[-2:]), k, self.rotation)
             return
@@ -627,6 +643,11 @@ def _flux_corrects(source_layout: Layout, source_pixels: int, target: Layout) ->
     return target.name in DISCS and source_pixels <= LATLONG_FLUX_MAX_PIXELS
 
 
+def _corrected(source_layout: Layout, source_grid: tuple[int, ...], target: Layout, samples: int | None) -> bool:
+    """Whether this conversion gets a flux correction: :func:`_flux_corrects`, with the rate left automatic."""
+    return samples is None and _flux_corrects(source_layout, math.prod(source_grid), _face_layout(target))
+
+
 def _flux_stencil(source_layout: Layout, source_grid: tuple[int, ...], target: Layout, filled_grid, rotation,
                   samples: int | None, rates: tuple[int, int], delivery_of) -> flux.Stencil | None:
     """The flux correction of this conversion (:mod:`lightprobe.envmap.flux`), or None where none is made (see
@@ -634,7 +655,7 @@ def _flux_stencil(source_layout: Layout, source_grid: tuple[int, ...], target: L
     ``rates`` (k, k_max) are the conversion's; ``delivery_of(omega_t)`` gives each source pixel's delivery, flat,
     as the kernel reads them. Kept for the last pairs of grids, up to :data:`_FLUX_CACHE_BYTES` of weights, keyed by
     the layouts themselves (a turned mirror ball is named "sphere" too)."""
-    if samples is not None or not _flux_corrects(source_layout, math.prod(source_grid), _face_layout(target)):
+    if not _corrected(source_layout, source_grid, target, samples):
         return None
     target = _face_layout(target)  # a cross target is filled as cube faces
     key = (source_layout, source_grid, target, tuple(filled_grid), rates,
