@@ -155,9 +155,9 @@ def rate_cost(rounds: int = 3) -> None:
     both (a rate given by hand has none: flux_cost times it)."""
     import time
 
-    from lightprobe.envmap.resample import supersampling
+    from lightprobe.envmap.resampling import supersampling
 
-    resample_module = importlib.import_module("lightprobe.envmap.resample")
+    resample_module = importlib.import_module("lightprobe.envmap.resampling")
     with_flux, resample_module._flux_stencil = resample_module._flux_stencil, lambda *args, **kwargs: None
 
     print("\nper-pixel rates against one rate k for the whole map (best of 3, alternating)")
@@ -194,7 +194,7 @@ def balance_cost(rounds: int = 3) -> None:
     print(f"  {'conversion':34s} {'weights':>8s} {'pass':>7s} {'without':>8s} {'with':>8s}  ratio")
     rng = np.random.default_rng(2)
     with_balance = balance.prefilter_for
-    resample_module = importlib.import_module("lightprobe.envmap.resample")
+    resample_module = importlib.import_module("lightprobe.envmap.resampling")
     with_flux, resample_module._flux_stencil = resample_module._flux_stencil, lambda *args, **kwargs: None
     for name, size, target, out_size in BALANCE_COST:
         src_layout, tgt_layout = layout(name), layout(target)
@@ -231,7 +231,7 @@ def flux_cost(rounds: int = 3) -> None:
     process), with it kept, and without it (best of ``rounds`` alternating runs each), and the largest weight."""
     import time
 
-    resample_module = importlib.import_module("lightprobe.envmap.resample")
+    resample_module = importlib.import_module("lightprobe.envmap.resampling")
     print("\nthe flux correction: conversion time when it is made, when it is kept, and without it (best of 3)")
     print(f"  {'conversion':34s} {'without':>8s} {'made':>8s} {'kept':>8s}  made/without kept/without  weight")
     rng = np.random.default_rng(3)

@@ -15,7 +15,7 @@ from lightprobe.envmap import EnvMap, Resampler, flux
 from lightprobe.envmap.map import pixel_directions, pixel_solid_angles
 from lightprobe.layouts import layout
 
-resample_module = importlib.import_module("lightprobe.envmap.resample")
+resample_module = importlib.import_module("lightprobe.envmap.resampling")
 
 COARSE = [("cube", 64, "latlong", 32), ("cube", 64, "angular", 32), ("angular", 128, "latlong", 32),
           ("sphere", 128, "cube", 32), ("cube", 64, "sphere", 32),

@@ -145,6 +145,28 @@ def test_the_command_lines_names_are_the_implementations_tables():
     assert names.RENDER_METHODS == tuple(methods.all_methods())
 
 
+def test_sh_and_info_load_neither_the_resampler_nor_other_commands(tmp_path):
+    """`lightprobe sh` and `lightprobe info` on a lat-long file build only their own parser and never load the
+    resampler (lightprobe.envmap's resampling names load on first use): together 10–25 ms of a ~200 ms command, the
+    start-up issue 9 bounds at 3× `import numpy`. A name of the resampler still resolves from lightprobe.envmap."""
+    import subprocess
+    import sys
+
+    from lightprobe.io import write_image
+
+    path = tmp_path / "map.exr"
+    write_image(path, np.ones((16, 32, 3), np.float32))
+    script = ("import sys, contextlib, io\nfrom lightprobe.cli import main\n"
+              "with contextlib.redirect_stdout(io.StringIO()):\n"
+              f"    codes = [main(['sh', {str(path)!r}]), main(['info', {str(path)!r}])]\n"
+              "loaded = [m for m in ('lightprobe.envmap.resampling', 'lightprobe.cli.batch', 'lightprobe.cli.render',\n"
+              "                      'lightprobe.cli.convert', 'numba') if m in sys.modules]\n"
+              "from lightprobe.envmap import resample, Resampler\n"
+              "print(codes, loaded, resample.__module__, Resampler.__module__)\n")
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True).stdout
+    assert out.split() == ["[0,", "0]", "[]", "lightprobe.envmap.resampling", "lightprobe.envmap.resampling"], out
+
+
 def test_help_loads_no_numpy():
     """`lightprobe --help` and every command's --help list their choices without importing numpy (issue 9)."""
     import subprocess
@@ -152,7 +174,7 @@ def test_help_loads_no_numpy():
 
     script = ("import sys, contextlib, io\nfrom lightprobe.cli import main, COMMANDS\n"
               "with contextlib.redirect_stdout(io.StringIO()):\n"
-              "    codes = [main(['--help'])] + [main([c.__name__.rsplit('.', 1)[1], '--help']) for c in COMMANDS]\n"
+              "    codes = [main(['--help'])] + [main([c, '--help']) for c in COMMANDS]\n"
               "print(codes, 'numpy' in sys.modules)\n")
     from lightprobe.cli import COMMANDS
 

@@ -13,7 +13,7 @@ import pytest
 
 from lightprobe.envmap import EnvMap
 from lightprobe.envmap import fused
-from lightprobe.envmap.resample import _fused_resample, reference_resample, resample
+from lightprobe.envmap.resampling import _fused_resample, reference_resample, resample
 from lightprobe.frames import rotation_from_ypr
 from lightprobe.jit import dispatcher
 from lightprobe.layouts import CUBE, LATLONG, LAYOUTS, Sphere
@@ -249,7 +249,7 @@ def test_the_separable_rows_are_the_midpoint_rows_in_the_limit():
     rows agree with the kernel's own k×k midpoint rows at k = 48 on a smooth map — the same reconstruction,
     integrated exactly in θ rather than by midpoints."""
     from lightprobe.envmap import separable
-    from lightprobe.envmap.resample import _fused_resample
+    from lightprobe.envmap.resampling import _fused_resample
 
     rng = np.random.default_rng(3)
     src = EnvMap(rng.gamma(2.0, 1.0, (64, 128, 3)).astype(np.float32), LATLONG)
@@ -366,7 +366,7 @@ GAIN_CEILINGS = [  # every pixel of the source as the sun; cube, angular and mir
 def test_a_sun_in_any_pixel_keeps_its_energy_within_the_measured_ceiling(source, size, target, out_size, ceiling):
     """Every source pixel as the sun, exactly (energy_gains): held to what this code reaches, so a change that
     loses it fails. Cube, angular and mirror-ball sources are flux-corrected (exact to float rounding), and lat-long
-    sources into discs up to resample.LATLONG_FLUX_MAX_PIXELS; a larger lat-long holds issue 9's 0.2 % by its rates."""
+    sources into discs up to resampling.LATLONG_FLUX_MAX_PIXELS; a larger lat-long holds issue 9's 0.2 % by its rates."""
     worst = _kept_gains(source, size, target, out_size).max()
     assert worst < ceiling, f"{100 * worst:.3f} %"
 
@@ -428,17 +428,17 @@ def test_a_sun_in_any_pixel_of_any_source_keeps_its_energy(source, target, out_s
     an angular map of 32, 0.24–0.42 % from discs, 0.26–0.74 % from a lat-long into 16–32-pixel discs
     (tests/test_flux.py keeps the uncorrected figures failing). A mirror ball into 16-pixel targets other than a cube
     was halved to 64 pixels, whose blocks straddle the 25° rim margin (19–24 % there): it keeps 128
-    (resample.SPHERE_MIN_SIDE; the next test shows the 64)."""
+    (resampling.SPHERE_MIN_SIDE; the next test shows the 64)."""
     size = {"cube": 64}.get(source, 128)
     worst = _kept_gains(source, size, target, out_size).max()
     assert worst < 2e-3, f"{100 * worst:.3f} %"
 
 
 def test_a_mirror_ball_halved_to_64_pixels_would_lose_energy_by_its_rim(monkeypatch):
-    """What resample.SPHERE_MIN_SIDE prevents: a mirror ball of 128 halved to 64 for a 16-pixel lat-long, whose
+    """What resampling.SPHERE_MIN_SIDE prevents: a mirror ball of 128 halved to 64 for a 16-pixel lat-long, whose
     blocks straddle the 25° rim margin (a block's ring ~20° wide there), had pixels 19–24 % off; kept at 128,
     none over 0.2 %."""
-    resample_module = importlib.import_module("lightprobe.envmap.resample")
+    resample_module = importlib.import_module("lightprobe.envmap.resampling")
     assert _kept_gains("sphere", 128, "latlong", 16).max() < 2e-3
     monkeypatch.setattr(resample_module, "SPHERE_MIN_SIDE", 64)
     assert _kept_gains("sphere", 128, "latlong", 16).max() > 0.1
@@ -483,7 +483,7 @@ def test_every_pixel_of_a_source_under_48_rows_keeps_its_energy(rows, target, ou
         return np.nanmax(gains)
 
     assert worst() < 1e-5
-    resample_module = importlib.import_module("lightprobe.envmap.resample")
+    resample_module = importlib.import_module("lightprobe.envmap.resampling")
     monkeypatch.setattr(resample_module, "_flux_stencil", lambda *args, **kwargs: None)
     assert worst() > 0.2
 
@@ -552,7 +552,7 @@ def test_maps_under_the_least_tier_keep_the_plain_spline():
 @pytest.mark.parametrize("target", list(TARGETS))
 def test_uniform_maps_stay_exactly_uniform_with_reduced_polar_rows(target, turn):
     from lightprobe.envmap import polar
-    from lightprobe.envmap.resample import _plan
+    from lightprobe.envmap.resampling import _plan
 
     lay = TARGETS[target]
     src = EnvMap(np.full((64, 128, 3), 2.5, np.float32), LATLONG)
@@ -616,7 +616,7 @@ def test_lookups_nearer_the_pole_than_their_pixel_spread_over_more_columns():
     the rows between take its column spacing × sin θ_centre / sin θ_row, so the pole row is read whole. A
     lat-long target's rows are the source's: its spacing is the same at every row, and its rows stay as they are."""
     from lightprobe.envmap import polar
-    from lightprobe.envmap.resample import _prepared
+    from lightprobe.envmap.resampling import _prepared
 
     src, _ = _sun_map((0.001, 1, 0.002))
     source, _, k, steps = _prepared(src, TARGETS["sphere"], 64, None)
@@ -683,7 +683,7 @@ def test_the_symmetric_cube_pass_equals_the_general_kernel(rows, faces, k, reduc
     """Issue 9: one footprint read for up to 8 target pixels (quarter turns, mirror) gives what the general kernel
     computes pixel by pixel, to float32 rounding — odd and even faces, polar reductions, suns on the seam, near both
     poles and on the equator; the streamed strips too."""
-    from lightprobe.envmap.resample import _plan, resample_strips
+    from lightprobe.envmap.resampling import _plan, resample_strips
 
     rng = np.random.default_rng(rows + faces)
     data = rng.gamma(0.5, 1.0, size=(rows, 2 * rows, 3)).astype(np.float32)
@@ -702,7 +702,7 @@ def test_the_symmetric_cube_pass_equals_the_general_kernel(rows, faces, k, reduc
 
 
 def test_the_symmetric_cube_pass_is_not_taken_where_it_does_not_hold():
-    from lightprobe.envmap.resample import _plan
+    from lightprobe.envmap.resampling import _plan
 
     src = EnvMap(np.ones((16, 32, 3), np.float32), LATLONG)
     assert _plan(src, CUBE, 8, TURN, 3).cube_rows is None  # a turned environment
@@ -717,7 +717,7 @@ def test_a_cross_is_streamed_in_strips_equal_to_the_whole_map(target, source, ro
     """resample_strips into a cross computes each strip's rows from the faces' rows (its tiles are flipped faces):
     strips of a few rows that cut the tiles part-way give the whole map's image, empty tiles 0."""
     from lightprobe.envmap.files import to_image
-    from lightprobe.envmap.resample import resample_strips
+    from lightprobe.envmap.resampling import resample_strips
     from lightprobe.layouts import layout
 
     cross = layout(target)

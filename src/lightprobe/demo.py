@@ -266,7 +266,7 @@ def _gain_pictures(rep: Report) -> str:
     removes."""
     from .envmap import Resampler, balance
     from .envmap.map import pixel_solid_angles
-    from .envmap.resample import supersampling
+    from .envmap.resampling import supersampling
     from .layouts import layout
 
     ball, angular, cube, latlong = layout("sphere"), layout("angular"), layout("cube"), layout("latlong")

@@ -184,7 +184,7 @@ def _working_grid(env: EnvMap, rows: int) -> EnvMap:
             (env.grid[0] // rows) & (env.grid[0] // rows - 1) == 0:
         # a power-of-two multiple: exact 2×2 solid-angle-weighted means (∫L dω kept to rounding), ~40× faster
         # than the general resampler's footprint integration, which it equals where the map is smooth
-        from .envmap.resample import box_reduce
+        from .envmap.resampling import box_reduce
 
         while env.grid[0] > rows:
             env = box_reduce(env)

@@ -1,13 +1,13 @@
 """A conversion's flux correction: the pre-filter after which a sun in any source pixel keeps its energy exactly.
 
 A resampling is linear: a sun wholly in source pixel j reaches the target as column j of the weights, and its energy
-there is D_j = Σ_t Ω_t W_tj (:func:`lightprobe.envmap.resample.delivered`). It should be the pixel's solid angle Ω_j.
+there is D_j = Σ_t Ω_t W_tj (:func:`lightprobe.envmap.resampling.delivered`). It should be the pixel's solid angle Ω_j.
 What is left between the two after the texel balance (:mod:`lightprobe.envmap.balance`) is the target's quadrature:
 k×k subsamples per target pixel sum a spline that is not constant over the pixel — a cube's corner texels seen from
 a lat-long of 32 rows (2.4 %), a disc target's coarse pixels (1.8 %), the rings where the per-pixel rate steps
 (0.2–0.4 %), a lat-long's pixels read by the 20–40° rim rings of a 16–32-pixel disc (0.26–0.74 %). It depends on
 the pair of grids, so it is measured for the pair, and the source is pre-filtered so that every pixel's effective
-delivery is Ω_j (which conversions are: :func:`lightprobe.envmap.resample._flux_corrects`):
+delivery is Ω_j (which conversions are: :func:`lightprobe.envmap.resampling._flux_corrects`):
 
     x'_p = x_p + Σ_q w_pq (x_q − x_p),   w_pq ≥ 0 on the grid's edges (and a cube's seams), Σ_q w_pq < 1.
 
@@ -38,7 +38,7 @@ from ..layouts import CUBE, Layout, _padding_index
 GROUND_MARGIN = 20.0  # degrees from a disc's rim direction: pixels within it are not corrected. Inside the energy
 #                       measure's 25° (benchmarks/bench_energy.py, Resampler.energy_gains(rim_margin)): a pixel there
 #                       may be 5° wide radially and still hold no sun outside 25° — why a mirror ball is not halved
-#                       under 128 pixels (resample.SPHERE_MIN_SIDE: at 64 its pixels are ~20° wide there, and suns
+#                       under 128 pixels (resampling.SPHERE_MIN_SIDE: at 64 its pixels are ~20° wide there, and suns
 #                       just outside 25° came out 19–24 % off). At 15° every weight grows (3.5 → 13 % for mirror
 #                       ball 128 → cube 32, 0.5 → 3 % at full size)
 DEAD_DELIVERY = 0.25  # a ground pixel the conversion delivers less than this share of its solid angle takes no flow

@@ -150,14 +150,14 @@ class EnvMap:
     # ---- transforms --------------------------------------------------------------------------------------------
     def to(self, layout: str | Layout, size: int | None = None, samples: int | None = None) -> EnvMap:
         """This map in another layout (footprint-aware resampling, see :func:`lightprobe.envmap.resample`)."""
-        from .resample import resample
+        from .resampling import resample
 
         return resample(self, layout_named(layout), size, samples=samples)
 
     def rotated(self, rotation, samples: int | None = None) -> EnvMap:
         """The environment turned by ``rotation`` (3×3 matrix or (yaw, pitch, roll) degrees, see
         :func:`lightprobe.frames.rotation_from_ypr`): light that came from d now comes from R·d. Same layout."""
-        from .resample import resample
+        from .resampling import resample
 
         return resample(self, self.layout, self.size, rotation=as_rotation(rotation), samples=samples)
 
