@@ -146,7 +146,9 @@ def resample_strips(source: EnvMap, target: Layout, size: int | None = None, *, 
 def _cross_strips(plan: _Plan, target: Cross, strip_pixels: int):
     """resample_strips into a cross whose tiles are its faces flipped (no transposed tile): each strip's rows are
     rows of the faces in its band of tiles, computed as the strip needs them — no whole cube, no whole cross (a
-    4k map's cross was 1.5 GB at the peak, 200 MB of it the cross image)."""
+    4k map's cross was 1.5 GB at the peak, 200 MB of it the cross image). Side faces that need the same rows in a
+    strip (a cross's middle band) take them through the cube's symmetries when the plan has them, as a cube's
+    strips do: the general kernel face by face made a 2k lat-long's cross 3.1× its cube's strips."""
     n = plan.height
     shape = target.grid_shape(n)
     rows = max(1, strip_pixels // shape[1])
@@ -154,18 +156,52 @@ def _cross_strips(plan: _Plan, target: Cross, strip_pixels: int):
     def strips():
         for top in track(range(0, shape[0], rows), f"resampling to {target.name}", total=-(-shape[0] // rows)):
             block = np.zeros((min(rows, shape[0] - top), shape[1], 3), dtype=np.float32)
-            for face, (tile_row, tile_col, (_, flip_rows, flip_cols)) in enumerate(target.tile_turns()):
-                first, last = max(top, tile_row * n), min(top + len(block), (tile_row + 1) * n)
-                if first >= last:
-                    continue
-                a, b = first - tile_row * n, last - tile_row * n  # the tile's rows; the face's, flipped or not
-                lines = np.empty((b - a, n, 3), dtype=np.float32)
-                plan.fill(lines, face * n + (n - b if flip_rows else a))
+            tiles = _strip_tiles(target, n, top, len(block))
+            faces = _side_rows(plan, tiles, n)
+            for face, (lo, hi), (first, last), tile_col, flip_rows, flip_cols in tiles:
+                lines = faces.get(face)
+                if lines is None:
+                    lines = np.empty((hi - lo, n, 3), dtype=np.float32)
+                    plan.fill(lines, face * n + lo)
                 block[first - top:last - top, tile_col * n:(tile_col + 1) * n] = \
                     lines[::-1 if flip_rows else 1, ::-1 if flip_cols else 1]
             yield top, block
 
     return shape, strips()
+
+
+def _strip_tiles(target: Cross, n: int, top: int, height: int) -> list[tuple]:
+    """The tiles a cross strip of ``height`` image rows from ``top`` cuts: per face (face, its rows (lo, hi), the
+    image rows (first, last), tile column, flip rows, flip columns)."""
+    tiles = []
+    for face, (tile_row, tile_col, (_, flip_rows, flip_cols)) in enumerate(target.tile_turns()):
+        first, last = max(top, tile_row * n), min(top + height, (tile_row + 1) * n)
+        if first < last:
+            a, b = first - tile_row * n, last - tile_row * n
+            tiles.append((face, (n - b, n - a) if flip_rows else (a, b), (first, last), tile_col, flip_rows,
+                          flip_cols))
+    return tiles
+
+
+_SIDE_FACES = (0, 1, 4, 5)  # +X, −X, +Z, −Z: the faces whose rows the cube's symmetries compute together
+
+
+def _side_rows(plan: _Plan, tiles: list[tuple], n: int) -> dict[int, np.ndarray]:
+    """Rows of the side faces that two or more of ``tiles`` need alike, through the cube's symmetries (one pass
+    for all four; the others are left to the general kernel): face → its rows."""
+    if plan.cube_rows is None:
+        return {}
+    wanted: dict[tuple[int, int], list[int]] = {}
+    for face, rows, *_ in tiles:
+        if face in _SIDE_FACES:
+            wanted.setdefault(rows, []).append(face)
+    out = {}
+    for (lo, hi), faces in wanted.items():
+        if len(faces) > 1:
+            sides = np.empty((6, hi - lo, n, 3), dtype=np.float32)
+            plan.fill_rows(sides, lo, 0, hi - lo, poles=False)
+            out.update({face: sides[face] for face in faces})
+    return out
 
 
 def _prepared(source: EnvMap, target: Layout, size: int | None, samples: int | None, rotation=None):
