@@ -15,11 +15,10 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # idle OpenBLAS threads spin
 
 import atexit
 import contextlib
+import importlib
 import signal
 import sys
 import warnings
-
-import importlib
 
 from ..errors import LightprobeError
 from .common import Parser

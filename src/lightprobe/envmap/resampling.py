@@ -183,7 +183,7 @@ def _strip_tiles(target: Cross, n: int, top: int, height: int) -> list[tuple]:
     return tiles
 
 
-_SIDE_FACES = (0, 1, 4, 5)  # +X, −X, +Z, −Z: the faces whose rows the cube's symmetries compute together
+_SIDE_FACES = frozenset(int(face) for face in cube_symmetry.SIDE_FACES[:, 0])  # whose rows it computes together
 
 
 def _side_rows(plan: _Plan, tiles: list[tuple], n: int) -> dict[int, np.ndarray]:
