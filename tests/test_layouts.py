@@ -9,7 +9,8 @@ from hypothesis import strategies as st
 
 from conftest import SPECIAL_DIRECTIONS, random_directions
 from lightprobe.errors import LayoutError
-from lightprobe.layouts import ANGULAR, CROSS, CUBE, HCROSS, LATLONG, LAYOUTS, SPHERE, Sphere, detect_layout
+from lightprobe.layouts import (ANGULAR, CROSS, CUBE, HCROSS, LATLONG, LAYOUTS, PAD, SPHERE, Sphere, detect_layout,
+                                layout)
 from lightprobe.frames import rotation_from_ypr
 
 ALL = list(LAYOUTS.values())
@@ -185,3 +186,28 @@ def test_a_cubes_corner_padding_holds_each_corner_texel_once(n):
     near = lambda x: (x < PAD) | (x >= n - PAD)  # noqa: E731
     assert all(near(rr) and near(cc) for _, rr, cc in held)  # corner-block texels
     assert all(ff != f0 for ff, f0 in zip(face[diagonal], f[diagonal]))  # from another face
+
+
+@pytest.mark.parametrize("name, n", [("sphere", 64), ("sphere", 101), ("angular", 64), ("angular", 101)])
+def test_a_discs_padding_counts_each_pixel_by_its_share(name, n):
+    """A disc's padded lookup table: certainty 1 inside the disc, 0 off it, between for the rim pixels. A mirror
+    ball's density is constant, so its certainties are the pixels' exact areas in the disc and, times 4 sr per unit
+    of disc area, sum to 4π; an angular map's slivers by the rim count less than half their area (its density
+    falls to 0 at the rim); no pixel that covers sphere is left out."""
+    lay = layout(name)
+    grid = lay.grid_shape(n)
+    _, valid = lay.padded(np.zeros(grid + (3,), np.float32))
+    certainty = valid[0, PAD:-PAD, PAD:-PAD]
+    omega = lay.solid_angles(grid)
+    assert certainty.dtype == np.float32 and certainty.min() >= 0 and certainty.max() <= 1
+    np.testing.assert_array_equal(certainty > 0, omega > 0)
+    np.testing.assert_array_equal(valid[0, :PAD], 0)
+    rim = (certainty > 0) & (certainty < 1)
+    assert rim.sum() > 3 * n  # the rim's ring, about 4n pixels
+    if name == "sphere":
+        np.testing.assert_allclose((certainty * 16.0 / n**2).sum(), 4 * np.pi, rtol=1e-6)
+    else:
+        a = np.linspace(-1, 1, 24 * n, endpoint=False) + 1 / (24 * n)  # each pixel's area in the disc, finely
+        inside = (np.hypot(a[None, :], a[:, None]) <= 1).reshape(n, 24, n, 24).mean(axis=(1, 3))
+        slivers = rim & (inside < 0.2)
+        assert slivers.any() and (certainty[slivers] < 0.5 * inside[slivers]).all()

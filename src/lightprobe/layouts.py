@@ -278,6 +278,10 @@ class _DiscLayout(Layout):
         self.check_grid(grid)
         return _disc_valid_mask(self, grid[0]).copy()
 
+    def _rim_pixel_solid_angles(self, n: int, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """Solid angles of the rim pixels (rows, cols) of an n×n image, without integrating the interior."""
+        return _rim_solid_angles(self, n, rows, cols)
+
     def _clamped_ab(self, u, v):
         """Disc coordinates (a right, b up), pulled onto the rim where they fall outside it.
 
@@ -289,12 +293,32 @@ class _DiscLayout(Layout):
         return a * shrink, b * shrink
 
     def padded(self, data, pad=PAD, prefilter=None):
-        # nothing lies beyond a disc's rim: zero border with zero validity
+        # nothing lies beyond a disc's rim: zero border with zero validity; rim pixels count by their share
         img = np.pad(data.astype(np.float32), ((pad, pad), (pad, pad), (0, 0)))[None]
         if prefilter is not None:
             prefilter(img[:, pad:-pad, pad:-pad])
-        valid = np.pad(self.valid_mask(data.shape[:2]).astype(np.float32), pad)[None]
+        valid = np.pad(_disc_certainty(self, data.shape[0]), pad)[None]
         return img, valid
+
+
+@lru_cache(maxsize=8)
+def _disc_certainty(layout: _DiscLayout, n: int) -> np.ndarray:
+    """How much each pixel of an n×n disc image counts in a lookup that renormalises its taps (float32): 1 inside
+    the disc, 0 off it, and for a pixel the rim cuts its solid angle over that of a whole pixel where it lies (the
+    density at its centre, or half a pixel inside the rim if its centre is further out). A lookup is then a
+    normalised convolution whose certainties are the pixels' shares of the sphere. Counted whole (the validity mask),
+    a rim sliver with 0.1 % of a pixel's area was read as much as a whole pixel beside it, and a sun in it came out
+    with up to ~1000 times its energy (mirror ball 256 → cube 64: +94 000 %, angular 256 → cube 64: +125 000 %).
+    By area alone, an angular map's slivers (its density falls to 0 at the rim) still came out up to 14×."""
+    interior, rim = _disc_pixel_classes(n)
+    rows, cols = np.nonzero(rim)
+    a, b = (2 * cols + 1) / n - 1, 1 - (2 * rows + 1) / n  # the rim pixels' centres
+    inward = np.minimum(1.0, (1 - 1 / n) / np.hypot(a, b))
+    whole = layout.uv_density(0, (a * inward + 1) / 2, (1 - b * inward) / 2) / n**2
+    out = interior.astype(np.float32)
+    out[rows, cols] = np.clip(layout._rim_pixel_solid_angles(n, rows, cols) / whole, 0.0, 1.0)
+    out.setflags(write=False)
+    return out
 
 
 def _quarter_disc_area(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -448,11 +472,15 @@ class Sphere(_DiscLayout):
         n = grid[0]
         interior, rim = _disc_pixel_classes(n)
         rows, cols = np.nonzero(rim)
+        interior[rows, cols] = self._rim_pixel_solid_angles(n, rows, cols) > 0
+        return interior
+
+    def _rim_pixel_solid_angles(self, n, rows, cols):
+        # constant density: 4 sr per unit of disc area, each pixel's area in the disc exact
         e = np.linspace(-1.0, 1.0, n + 1)
         area = (_quarter_disc_area(e[rows + 1], e[cols + 1]) - _quarter_disc_area(e[rows], e[cols + 1])
                 - _quarter_disc_area(e[rows + 1], e[cols]) + _quarter_disc_area(e[rows], e[cols]))
-        interior[rows, cols] = area > 0
-        return interior
+        return 4 * np.maximum(area, 0.0)
 
     def dir_to_uv(self, d):
         local = np.asarray(d, dtype=np.float64) @ self.camera_axes
