@@ -27,6 +27,7 @@ from lightprobe.cli.common import ImageSize, Number, NumberList
 from lightprobe.envmap import EnvMap, check_size, read_envmap
 from lightprobe.errors import BudgetError, LightprobeError, UsageError
 from lightprobe.io import write_image
+from lightprobe.peak import run_measured
 from lightprobe.layouts import LATLONG
 from lightprobe.sh import a_hat, project
 from test_cli import assert_clean_failure, run
@@ -422,18 +423,8 @@ def test_f09_the_triangle_limit_holds_for_the_whole_scene(tmp_path):
 
 
 def peak_of(*argv, env=None) -> tuple[subprocess.CompletedProcess, float]:
-    """Run the command from a small wrapper process and return it with its peak resident memory in MiB (the
-    wrapper is small, so the children's maximum is the command's own)."""
-    wrapper = ("import resource, subprocess, sys\n"
-               "r = subprocess.run(sys.argv[1:], capture_output=True, text=True)\n"
-               "sys.stderr.write(r.stderr); sys.stdout.write(r.stdout)\n"
-               "print('PEAK', resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss, file=sys.stderr)\n"
-               "sys.exit(r.returncode)\n")
-    res = subprocess.run(["/usr/bin/env", "python3", "-c", wrapper, EXE, *map(str, argv)], capture_output=True,
-                         text=True, timeout=300, env={**os.environ, "LIGHTPROBE_PROGRESS": "0", **(env or {})})
-    peak = int(re.search(r"PEAK (\d+)", res.stderr).group(1)) / 1024
-    res.stderr = re.sub(r"PEAK \d+\n", "", res.stderr)
-    return res, peak
+    """Run the command and return it with its peak resident memory in MiB (lightprobe.peak.run_measured)."""
+    return run_measured([EXE, *argv], env={"LIGHTPROBE_PROGRESS": "0", **(env or {})}, timeout=300)
 
 
 def test_f10_a_decompression_bomb_is_refused_before_it_is_decoded(tmp_path):
@@ -467,11 +458,9 @@ def test_f10_the_hdr_reader_never_allocates_a_short_files_claimed_size(tmp_path)
     script = ("import sys, warnings\nfrom lightprobe.io import read_image\nfrom lightprobe.errors import "
               "LightprobeError\nfor p in sys.argv[1:]:\n    try:\n        read_image(p)\n"
               "    except LightprobeError:\n        pass\n")
-    wrapper = ("import resource, subprocess, sys\nsubprocess.run(sys.argv[1:], check=True)\n"
-               "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)\n")
-    out = subprocess.run(["/usr/bin/env", "python3", "-c", wrapper, sys.executable, "-c", script, *map(str, files)],
-                         capture_output=True, text=True, check=True, timeout=120).stdout
-    assert int(out) / 1024 < 300  # MiB; 11000 × 12000 float RGB alone would be 1.5 GB
+    res, peak = run_measured([sys.executable, "-c", script, *files], timeout=120)
+    assert res.returncode == 0, res.stderr
+    assert peak < 300  # MiB; 11000 × 12000 float RGB alone would be 1.5 GB
 
 
 def test_f20_f23_work_over_the_memory_budget_is_refused_before_it_starts(tmp_path):

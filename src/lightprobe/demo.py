@@ -207,26 +207,22 @@ def section_speed(rep: Report) -> str:
 def _convert_peak_memory(env, folder) -> dict[str, float]:
     """Peak resident memory (MiB) of ``lightprobe convert`` of ``env`` into a cube in a fresh process: as it runs
     (kernels linked on a small map, then LLVM's pages let go: :func:`lightprobe.jit.release_compiler_pages`), and
-    with that step left out (what it removes). Each run is a child of a small wrapper, whose getrusage of its
-    children is then the command's own peak."""
-    import os
-    import subprocess
+    with that step left out (what it removes), each measured by :func:`lightprobe.peak.run_measured`."""
     import sys
 
     from .io import write_image
+    from .peak import run_measured
 
     src, dst = folder / "convert_memory.exr", folder / "convert_memory_cube.exr"
     write_image(src, env.data)
-    wrapper = ("import resource, subprocess, sys\nsubprocess.run(sys.argv[1:], check=True, capture_output=True)\n"
-               "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)\n")
     peaks = {}
     for mode, step in (("released", ""), ("kept", "convert._link_kernels = lambda *args: None\n")):
         command = ("import sys\nimport lightprobe.cli.convert as convert\n" + step
                    + "from lightprobe.cli import main\nsys.exit(main(sys.argv[1:]))\n")
-        out = subprocess.run([sys.executable, "-c", wrapper, sys.executable, "-c", command, "convert", str(src),
-                              str(dst), "--to", "cube"], capture_output=True, text=True, check=True,
-                             env={**os.environ, "LIGHTPROBE_PROGRESS": "0"})
-        peaks[mode] = int(out.stdout.split()[-1]) / 1024
+        res, peaks[mode] = run_measured([sys.executable, "-c", command, "convert", str(src), str(dst), "--to", "cube"],
+                                        env={"LIGHTPROBE_PROGRESS": "0"})
+        if res.returncode:
+            raise RuntimeError(f"convert for the memory figure failed: {res.stderr.strip()[-300:]}")
     src.unlink()
     dst.unlink()
     return peaks
