@@ -78,9 +78,9 @@ def test_every_pixel_keeps_its_energy_with_the_correction_and_not_without(source
     for rim in (src.rim_direction(), layout(target).rim_direction()):
         if rim is not None:
             rim_far &= pixel_directions(src, grid) @ rim < np.cos(np.radians(25))
-    # a small blend: a sun stays where it was. Up to 0.095 just outside a mirror ball's ground (128 → cube 32): its
-    # rim slivers, read by their share now, no longer make up what the rest of the ground lacks, so flows cross in
-    assert totals[rim_far].max() < 0.1
+    # a small blend: a sun stays where it was. Up to 0.12 25–30° from a mirror ball's rim direction (128 → cube 32;
+    # 0.035 while its ring was left alone): the flows now reach into the ring and correct it too
+    assert totals[rim_far].max() < 0.15
     assert totals.max() <= flux.MAX_WEIGHT + 1e-6
     monkeypatch.setattr(resample_module, "_flux_stencil", lambda *args, **kwargs: None)
     assert _gains(source, size, target, out_size).max() > 2e-3
@@ -144,17 +144,24 @@ def test_a_disc_targets_rim_is_corrected_like_the_rest(source, size, target, out
                          [("sphere", 128, "cube", 64), ("angular", 128, "latlong", 64)])
 def test_a_disc_sources_rim_slivers_count_by_their_share_of_the_sphere(source, size, target, out_size, monkeypatch):
     """A pixel the rim barely cuts is read in proportion to its share (layouts._disc_certainty): a sun in the worst
-    one comes out within 2× its energy, where counted as a whole pixel it came out ~200–900× (the ground around a
-    disc source's rim direction is not corrected, so this is the lookup's own doing)."""
+    one comes out within 2× its energy, where counted as a whole pixel it came out ~200–900× — the lookup's own
+    doing, so measured where the flux correction does not reach: an angular map's ground, a mirror ball's
+    conversion before its correction."""
     from lightprobe import layouts as layouts_module
 
     src = layout(source)
     grid = src.grid_shape(size)
-    resample_module._FLUX_CACHE.clear()
-    assert np.nanmax(np.abs(Resampler(src, grid, layout(target), out_size).energy_gains())) < 2.0
+
+    def worst():
+        resample_module._FLUX_CACHE.clear()
+        conversion = Resampler(src, grid, layout(target), out_size)
+        if source == "sphere":
+            conversion = conversion.without_flux_correction()
+        return np.nanmax(np.abs(conversion.energy_gains()))
+
+    assert worst() < 2.0
     monkeypatch.setattr(layouts_module, "_disc_certainty", lambda lay, n: lay.valid_mask((n, n)).astype(np.float32))
-    resample_module._FLUX_CACHE.clear()
-    assert np.nanmax(np.abs(Resampler(src, grid, layout(target), out_size).energy_gains())) > 100.0
+    assert worst() > 100.0
     resample_module._FLUX_CACHE.clear()
 
 

@@ -13,10 +13,11 @@ import pytest
 
 from lightprobe.envmap import EnvMap
 from lightprobe.envmap import fused
+from lightprobe.envmap.map import pixel_directions
 from lightprobe.envmap.resampling import _fused_resample, reference_resample, resample
 from lightprobe.frames import rotation_from_ypr
 from lightprobe.jit import dispatcher
-from lightprobe.layouts import CUBE, LATLONG, LAYOUTS, Sphere
+from lightprobe.layouts import CUBE, LATLONG, LAYOUTS, Sphere, layout
 
 TURN = rotation_from_ypr(30, 20, 10)
 TARGETS = {**LAYOUTS, "sphere-turned": Sphere(rotation_from_ypr(-40, 25, 5))}
@@ -434,14 +435,29 @@ def test_a_sun_in_any_pixel_of_any_source_keeps_its_energy(source, target, out_s
     assert worst < 2e-3, f"{100 * worst:.3f} %"
 
 
-def test_a_mirror_ball_halved_to_64_pixels_would_lose_energy_by_its_rim(monkeypatch):
-    """What resampling.SPHERE_MIN_SIDE prevents: a mirror ball of 128 halved to 64 for a 16-pixel lat-long, whose
-    blocks straddle the 25° rim margin (a block's ring ~20° wide there), had pixels 19–24 % off; kept at 128,
-    none over 0.2 %."""
+@pytest.mark.parametrize("floor", [128, 64])
+def test_a_mirror_balls_ring_is_corrected_to_its_rim(floor, monkeypatch):
+    """A mirror ball's outer rings are corrected like the rest (resampling._ground leaves it none): every pixel of a
+    ball of 128 into a 16-pixel lat-long keeps its sun's energy with no margin, kept at 128 or halved to 64. Left
+    alone within 20° of its rim direction, as they were, they came out far off — and halved to 64, blocks just
+    outside the 25° margin 19–24 % (why resampling.SPHERE_MIN_SIDE was set)."""
+    from lightprobe.envmap import Resampler, flux
+
     resample_module = importlib.import_module("lightprobe.envmap.resampling")
-    assert _kept_gains("sphere", 128, "latlong", 16).max() < 2e-3
-    monkeypatch.setattr(resample_module, "SPHERE_MIN_SIDE", 64)
-    assert _kept_gains("sphere", 128, "latlong", 16).max() > 0.1
+    monkeypatch.setattr(resample_module, "SPHERE_MIN_SIDE", floor)
+    ball = layout("sphere")
+    grid = ball.grid_shape(128)
+
+    def worst(margin=None):
+        resample_module._FLUX_CACHE.clear()
+        return np.nanmax(np.abs(Resampler(ball, grid, layout("latlong"), 16).energy_gains(rim_margin=margin)))
+
+    assert worst() < 1e-5
+    monkeypatch.setattr(resample_module, "_ground",  # as it was: the ring within GROUND_MARGIN left alone
+                        lambda lay, g: pixel_directions(lay, g) @ lay.rim_direction()
+                        > np.cos(np.radians(flux.GROUND_MARGIN)))
+    assert worst() > 0.1
+    resample_module._FLUX_CACHE.clear()
 
 
 def test_points_off_a_disc_target_take_no_step():

@@ -20,7 +20,7 @@ four children that leave each child's total demand at zero, spread along their s
 pair's capacity min(D_p, D_q); a block's children are then blocks of the next level, down to single pixels. Every
 edge belongs to one level, the work is a few passes over the pixels, and the result is exact to float rounding. A
 cube's faces first exchange their totals over their seams (a 6-node Laplacian); pixels within
-:data:`GROUND_MARGIN` of a disc source's rim direction (one direction spread over a ring of pixels) are the ground:
+:data:`GROUND_MARGIN` of an angular source's rim direction (one direction spread over rings of pixels) are the ground:
 they take up what the others need, and are not corrected themselves — and those of them the conversion barely reads
 (:data:`DEAD_DELIVERY`) carry no flow, which would weigh their few reads far over 1. Weights stay small: 0.5–4 % at
 the worst pixel at the sizes maps are converted at (benchmarks/bench_energy.py --part flux), up to 30 % for 20-pixel
@@ -36,12 +36,9 @@ import numpy as np
 
 from ..layouts import CUBE, Layout, _padding_index
 
-GROUND_MARGIN = 20.0  # degrees from a disc source's rim direction: pixels within it are not corrected. Inside the
-#                       energy measure's 25° (benchmarks/bench_energy.py, Resampler.energy_gains(rim_margin)): a pixel there
-#                       may be 5° wide radially and still hold no sun outside 25° — why a mirror ball is not halved
-#                       under 128 pixels (resampling.SPHERE_MIN_SIDE: at 64 its pixels are ~20° wide there, and suns
-#                       just outside 25° came out 19–24 % off). At 15° every weight grows (3.5 → 13 % for mirror
-#                       ball 128 → cube 32, 0.5 → 3 % at full size)
+GROUND_MARGIN = 20.0  # degrees from an angular source's rim direction: pixels within it are not corrected (inside
+#                       the energy measure's 25°: benchmarks/bench_energy.py, Resampler.energy_gains(rim_margin)).
+#                       A mirror ball and a disc target have no ground (resampling._ground says why)
 DEAD_DELIVERY = 0.25  # a ground pixel the conversion delivers less than this share of its solid angle takes no flow
 MAX_WEIGHT = 0.75  # a pixel's weights are scaled down to this total where a flow through it would exceed it. The
 #                   source pixels a disc target's rim reads need up to 0.6 (lat-long 128 → mirror ball 64): at 0.5
