@@ -40,9 +40,10 @@ GROUND_MARGIN = 20.0  # degrees from an angular source's rim direction: pixels w
 #                       the energy measure's 25°: benchmarks/bench_energy.py, Resampler.energy_gains(rim_margin)).
 #                       A mirror ball and a disc target have no ground (resampling._ground says why)
 DEAD_DELIVERY = 0.25  # a ground pixel the conversion delivers less than this share of its solid angle takes no flow
-MAX_WEIGHT = 0.75  # a pixel's weights are scaled down to this total where a flow through it would exceed it. The
-#                   source pixels a disc target's rim reads need up to 0.6 (lat-long 128 → mirror ball 64): at 0.5
-#                   suns there were left 13 % off
+MAX_WEIGHT = 0.95  # a pixel's weights are scaled down to this total where a flow through it would exceed it. Only
+#                   pixels by a rim direction need over 0.5 (16–36 of them, within 18° of it): the source pixels a
+#                   disc target's rim reads up to 0.6 (lat-long 128 → mirror ball 64; 13 % off at 0.5), a mirror
+#                   ball's outer rings up to 0.95 (512 → cube 64, 256 → angular 64: 9 % and 15 % off at 0.75)
 
 
 @dataclass(frozen=True)
