@@ -249,13 +249,13 @@ def _every_pixel_gains() -> dict[str, tuple[float, float]]:
              ("cube 256 → lat-long 512 (1.6 % before graded cells, 0.40 % before the texel balance, 0.30 % before "
               "the flux correction)", "cube", 256, "latlong", 512),
              ("cube 64 → mirror ball 64, no margin (was 40 % within 25° of the ball's rim direction)", "cube", 64,
-              "sphere", 64),
-             ("lat-long 128 → mirror ball 64, no margin (was 55 % there)", "latlong", 128, "sphere", 64))
+              "sphere", 64, None),
+             ("lat-long 128 → mirror ball 64, no margin (was 55 % there)", "latlong", 128, "sphere", 64, None))
     out = {}
-    for label, source, size, target, out_size in cases:
+    for label, source, size, target, out_size, *margin in cases:  # the margin: 25° unless a row gives its own
         src = layout(source)
-        margin = None if "no margin" in label else 25.0
-        gains = Resampler(src, src.grid_shape(size), layout(target), out_size).energy_gains(rim_margin=margin)
+        gains = Resampler(src, src.grid_shape(size), layout(target), out_size).energy_gains(
+            rim_margin=margin[0] if margin else 25.0)
         gains = np.abs(gains[np.isfinite(gains)])
         out[label] = (float(gains.max()), float((gains > 2e-3).mean()))
     return out

@@ -356,7 +356,7 @@ def _disc_valid_mask(layout: _DiscLayout, n: int) -> np.ndarray:
     mask, rim = _disc_pixel_classes(n)  # the interior, and the rim pixels whose share of the disc is not 0
     rows, cols = np.nonzero(rim)
     del rim
-    mask[rows, cols] = _rim_solid_angles(layout, n, rows, cols) > 0
+    mask[rows, cols] = layout._rim_pixel_solid_angles(n, rows, cols) > 0
     mask.setflags(write=False)
     return mask
 
@@ -391,7 +391,7 @@ def _disc_solid_angles(layout: _DiscLayout, n: int) -> np.ndarray:
         v = (rows[:, None, None] + _GL_X[None, :, None]) / n
         omega[rows, cols] = (layout.uv_density(0, u, v) * wts).sum(axis=(1, 2)) / n**2
     rows, cols = np.nonzero(rim)
-    omega[rows, cols] = _rim_solid_angles(layout, n, rows, cols)
+    omega[rows, cols] = layout._rim_pixel_solid_angles(n, rows, cols)
     omega.setflags(write=False)
     return omega
 

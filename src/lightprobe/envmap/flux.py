@@ -24,8 +24,8 @@ cube's faces first exchange their totals over their seams (a 6-node Laplacian); 
 they take up what the others need, and are not corrected themselves — and those of them the conversion barely reads
 (:data:`DEAD_DELIVERY`) carry no flow, which would weigh their few reads far over 1. Weights stay small: 0.5–4 % at
 the worst pixel at the sizes maps are converted at (benchmarks/bench_energy.py --part flux), up to 30 % for 20-pixel
-mirror balls and 60 % for the few source pixels a small disc target's rim reads; a pixel's total is capped at
-:data:`MAX_WEIGHT`, so the blend stays convex whatever the input."""
+mirror balls; over 50 % only for a few dozen pixels by a rim direction (up to 95 % in a mirror ball's outer
+rings); a pixel's total is capped at :data:`MAX_WEIGHT`, so the blend stays convex whatever the input."""
 
 from __future__ import annotations
 
@@ -41,7 +41,7 @@ GROUND_MARGIN = 20.0  # degrees from an angular source's rim direction: pixels w
 #                       A mirror ball and a disc target have no ground (resampling._ground says why)
 DEAD_DELIVERY = 0.25  # a ground pixel the conversion delivers less than this share of its solid angle takes no flow
 MAX_WEIGHT = 0.95  # a pixel's weights are scaled down to this total where a flow through it would exceed it. Only
-#                   pixels by a rim direction need over 0.5 (16–36 of them, within 18° of it): the source pixels a
+#                   pixels by a rim direction need over 0.5 (0–36 of them, within 18° of it): the source pixels a
 #                   disc target's rim reads up to 0.6 (lat-long 128 → mirror ball 64; 13 % off at 0.5), a mirror
 #                   ball's outer rings up to 0.95 (512 → cube 64, 256 → angular 64: 9 % and 15 % off at 0.75)
 

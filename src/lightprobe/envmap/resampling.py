@@ -644,10 +644,10 @@ def _ground(source_layout: Layout, source_grid: tuple[int, ...]) -> np.ndarray |
     long: pixels there went unread or read for several). Not a mirror ball's: equal-area, its rim pixels counted
     by their share (:func:`lightprobe.layouts._disc_certainty`), its ring is read near its solid angle and the
     flows reach it — within 0.08 % to the rim in 39 of 40 pairs (mirror ball 128–1024 → every layout of 16–256;
-    not 1024 → angular 256), where as ground it was 78–410 % off within 25°, and a 1024 ball box-reduced for a 16-pixel target 5.7–17 % off just
-    outside 25° (the reduced ground's blocks reach past it). Not a disc target's either: the source pixels its rim
-    reads are corrected like any other (10–55 % off from cube and lat-long sources into a mirror ball while they
-    were ground; exact now, with weights up to 0.6)."""
+    not 1024 → angular 256), where as ground it was 78–410 % off within 25°, and a 1024 ball box-reduced for a
+    16-pixel target 5.7–17 % off just outside 25° (the reduced ground's blocks reach past it). Not a disc target's
+    either: the source pixels its rim reads are corrected like any other (10–55 % off from cube and lat-long sources
+    into a mirror ball while they were ground; exact now, with weights up to 0.6)."""
     rim = source_layout.rim_direction()
     if rim is None or source_layout.name == "sphere":
         return None
