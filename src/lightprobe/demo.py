@@ -277,6 +277,8 @@ def _gain_pictures(rep: Report) -> str:
     own_rate = own_rate.energy_gains(rim_margin=25.0)
     cube_gains = Resampler(cube, cube.grid_shape(64), latlong, 64).without_flux_correction().energy_gains()
     strip = np.concatenate(list(cube_gains), axis=1)  # the six faces side by side, as a cube file is
+    into_ball = Resampler(cube, cube.grid_shape(64), layout("sphere"), 64).without_flux_correction().energy_gains()
+    ball_strip = np.concatenate(list(into_ball), axis=1)
     surplus = balance.face_texel_integrals(64) / pixel_solid_angles(cube, cube.grid_shape(64))[0] - 1
     scale = "black 0, white 1 % or more; grey: no sphere, or within 25° of a rim direction"
     return (rep.display_picture("energy_ball_one_rate", heatmap(np.abs(one_rate), 0.01),
@@ -291,6 +293,12 @@ def _gain_pictures(rep: Report) -> str:
                                   "pixel's rate differs from its neighbours' (black 0, white 0.2 % or more; before "
                                   "the balance the edge texels were 0.5–0.8 %)",
                                   width=768)
+            + rep.display_picture("energy_cube_ball_rim", heatmap(np.abs(ball_strip), 0.05),
+                                  "cube 64 → mirror ball 64, every pixel with no margin, before the flux correction: "
+                                  "the spot on −Z (faces +X −X +Y −Y +Z −Z) is what the ball's rim reads, its rim "
+                                  "direction spread over a ring, up to 40 % off; it used to be left so, and is now "
+                                  "corrected like the faint rest (≤ 1.5 %): after it every pixel is exact (black 0, "
+                                  "white 5 % or more)", width=768)
             + rep.display_picture("energy_cube_surplus", heatmap(np.abs(surplus), 0.008),
                                   "what the balance removes: one face of a 64-texel cube, each texel's B-spline "
                                   "integral against its solid angle, whatever the target (black 0, white 0.8 %): "
