@@ -250,7 +250,9 @@ def _every_pixel_gains() -> dict[str, tuple[float, float]]:
               "the flux correction)", "cube", 256, "latlong", 512),
              ("cube 64 → mirror ball 64, no margin (was 40 % within 25° of the ball's rim direction)", "cube", 64,
               "sphere", 64, None),
-             ("lat-long 128 → mirror ball 64, no margin (was 55 % there)", "latlong", 128, "sphere", 64, None))
+             ("lat-long 128 → mirror ball 64, no margin (was 55 % there)", "latlong", 128, "sphere", 64, None),
+             ("lat-long 256 → mirror ball 128, no margin (not flux-corrected; 33 % by the rim direction before its "
+              "rim pixels were sampled round it)", "latlong", 256, "sphere", 128, None))
     out = {}
     for label, source, size, target, out_size, *margin in cases:  # the margin: 25° unless a row gives its own
         src = layout(source)

@@ -685,6 +685,9 @@ def _rate_rows(tgt_kind, tgt_axes, face, row, h, w, k, k_max, rotation, src_kind
         return
     for r in range(max(row - 1 if fresh else row + 1, 0), min(row + 2, h)):
         for col in range(w):
+            if _rim_polar(tgt_kind, r, col, h, w):
+                rates[r % 3, 0, col], rates[r % 3, 1, col] = RIM_MARK, RIM_MARK
+                continue
             rates[r % 3, 0, col], rates[r % 3, 1, col] = _rates(tgt_kind, tgt_axes, face, r, col, h, w, k, k_max,
                                                                 rotation, src_kind, src_axes, src_h, src_w)
 
@@ -698,6 +701,8 @@ def _pixel_rates(rates, tgt_kind, row, col, h, w, k, k_max):  # pragma: no cover
         return k, k, k, k, k, k
     here = row % 3
     ku, kv = rates[here, 0, col], rates[here, 1, col]
+    if ku == RIM_MARK:  # sampled round the rim direction: its rates serve only if that finds nothing
+        return k, k, k, k, k, k
     left, right, above, below = ku, ku, kv, kv
     if col > 0 or tgt_kind == LATLONG:
         left = rates[here, 0, (col - 1) % w]
@@ -707,17 +712,265 @@ def _pixel_rates(rates, tgt_kind, row, col, h, w, k, k_max):  # pragma: no cover
         above = rates[(row - 1) % 3, 1, col]
     if row < h - 1:
         below = rates[(row + 1) % 3, 1, col]
+    # A neighbour sampled round the rim direction has its rows RIM_SPACING apart, half the cells' spacing here: the
+    # end cells at that edge are graded to half a cell (towards 3k), so that the two pixels' midpoint rules, each
+    # off by a term in its spacing² at the edge, still cancel there (a one-pixel sun 0.9 % off where they did not).
+    left = RIM_EDGE * ku if left == RIM_MARK else left
+    right = RIM_EDGE * ku if right == RIM_MARK else right
+    above = RIM_EDGE * kv if above == RIM_MARK else above
+    below = RIM_EDGE * kv if below == RIM_MARK else below
     return ku, kv, left, right, above, below
+
+
+# A mirror ball's outer pixels squeeze its back cap into one ring: a pixel touching the rim reads from its rim direction
+# (ρ = 0) out to ~(8/R)^½ rad, and its image radius r = cos(ρ/2) is flat in ρ there, so subsamples evenly spaced in
+# the image bunch at the pixel's inner edge and land rows of source pixels apart by the rim direction: a one-pixel
+# sun there came out up to 33 % off (lat-long 256 → mirror ball 128), 48 % (512 → 256), wherever no flux correction
+# mends it. Where a pixel's ρ spans more than RIM_POLAR_SPAN× its least ρ, its subsamples are laid out in (ρ, α) round
+# the rim direction instead (:func:`_rim_subsamples`).
+RIM_POLAR_SPAN = 2.0
+RIM_MARK = -1  # in the rates buffer: a pixel sampled round the rim direction
+RIM_EDGE = 3  # a plain neighbour's end cells at its edge: 2/(k + 3k), half a cell (see _pixel_rates)
+RIM_SPLIT = 8  # sub-rows of a ring band that the pixel's edge cuts along its length
+RIM_SPACING = 0.25  # source pixels between a rim pixel's rows and its subsamples along a row (at 0.5: 0.36 % by the
+#                     ring's inner edge, lat-long 512 → mirror ball 256; the rows' error at the rim direction itself
+#                     is taken off in _rim_subsamples)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _ball_point(rho, alpha):  # pragma: no cover - compiled
+    """Image coordinates (u, v) of the point of a mirror ball ``rho`` radians from its rim direction, at angle
+    ``alpha`` round the image centre (from image right, counter-clockwise); kept a hair inside the disc."""
+    r = min(math.cos(0.5 * rho), 1.0 - 1e-12)
+    return 0.5 * (1.0 + r * math.cos(alpha)), 0.5 * (1.0 - r * math.sin(alpha))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _wrapped_angle(a):  # pragma: no cover - compiled
+    """``a`` wrapped into [−π, π)."""
+    return a - 2.0 * math.pi * math.floor((a + math.pi) / (2.0 * math.pi))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _arc_cuts(r, a0, a1, b0, b1, centre, lo, hi, cuts):  # pragma: no cover - compiled
+    """Sorted angles (relative to ``centre``, within (lo, hi)) where the circle of radius ``r`` crosses the lines of
+    square [a0, a1] × [b0, b1], with ``lo`` and ``hi`` themselves, into ``cuts``; returns how many."""
+    n = 0
+    cuts[n] = lo
+    n += 1
+    for i in range(4):
+        c = a0 if i == 0 else a1 if i == 1 else b0 if i == 2 else b1
+        if abs(c) > r:
+            continue
+        for j in range(2):
+            if i < 2:
+                base = math.acos(c / r)
+                a = base if j == 0 else -base
+            else:
+                base = math.asin(c / r)
+                a = base if j == 0 else math.pi - base
+            d = _wrapped_angle(a - centre)
+            if lo < d < hi:
+                cuts[n] = d
+                n += 1
+    cuts[n] = hi
+    n += 1
+    for i in range(1, n):  # insertion sort: ten at most
+        x, j = cuts[i], i - 1
+        while j >= 0 and cuts[j] > x:
+            cuts[j + 1] = cuts[j]
+            j -= 1
+        cuts[j + 1] = x
+    return n
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _quadrant_area(x, y, r):  # pragma: no cover - compiled
+    """Area of the disc of radius ``r`` round the origin within [0, x] × [0, y], signed as x·y."""
+    ax, ay = min(abs(x), r), abs(y)
+    flat = math.sqrt(max(r * r - ay * ay, 0.0))  # where the circle is at height y
+    if ax <= flat:
+        area = ay * ax
+    else:
+        def_x = ax * math.sqrt(max(r * r - ax * ax, 0.0)) + r * r * math.asin(min(ax / r, 1.0))
+        def_f = flat * math.sqrt(max(r * r - flat * flat, 0.0)) + r * r * math.asin(min(flat / r, 1.0))
+        area = ay * flat + 0.5 * (def_x - def_f)
+    return area if (x >= 0.0) == (y >= 0.0) else -area
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _disc_in_square(r, a0, a1, b0, b1):  # pragma: no cover - compiled
+    """Area of the disc of radius ``r`` round the origin within the square [a0, a1] × [b0, b1]."""
+    return (_quadrant_area(a1, b1, r) - _quadrant_area(a0, b1, r) - _quadrant_area(a1, b0, r)
+            + _quadrant_area(a0, b0, r))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _rim_span(row, col, h, w):  # pragma: no cover - compiled
+    """(least, greatest) ρ from the rim direction over mirror-ball pixel (row, col) of h × w; (1, 0) for a pixel off
+    the disc or holding its centre."""
+    a0, a1 = 2.0 * col / w - 1.0, 2.0 * (col + 1) / w - 1.0
+    b0, b1 = 1.0 - 2.0 * (row + 1) / h, 1.0 - 2.0 * row / h
+    near = math.hypot(min(max(0.0, a0), a1), min(max(0.0, b0), b1))
+    far = math.sqrt(max(a0 * a0, a1 * a1) + max(b0 * b0, b1 * b1))
+    if near >= 1.0 or near <= 0.0:
+        return 1.0, 0.0
+    return 2.0 * math.acos(min(far, 1.0)), 2.0 * math.acos(near)
+
+
+@njit(cache=True, error_model="numpy", fastmath=False)  # as _rim_subsamples: every kernel decides alike
+def _rim_polar(tgt_kind, row, col, h, w):  # pragma: no cover - compiled
+    """Whether target pixel (row, col) is sampled round the rim direction (:func:`_rim_subsamples`)."""
+    if tgt_kind != SPHERE:
+        return False
+    rho_lo, rho_hi = _rim_span(row, col, h, w)
+    return rho_hi >= RIM_POLAR_SPAN * rho_lo
+
+
+# Compiled apart and without the kernels' fastmath (numba passes a caller's fastmath on to a callee that does not
+# set its own): the band areas are differences of nearly equal areas, and the rows' places differences of nearly
+# equal terms, which the fast-math rewrites spoiled (the weights summed 3 % over the pixel's area).
+@njit(cache=True, error_model="numpy", fastmath=False)
+def _rim_subsamples(tgt_axes, row, col, h, w, rotation, src_kind, src_axes, src_h, src_w, pfs, pxs, pys,
+                    pws):  # pragma: no cover - compiled
+    """A mirror ball's pixel by its rim as subsamples in (ρ, α) — ρ from the rim direction, α round the image
+    centre — or (0, 0.0) where its ρ spans less than :data:`RIM_POLAR_SPAN`× its least ρ (the plain cells serve).
+    Rows at the middles of even steps of ρ; each row weighs the pixel's exact share of its ring (image area, ∝ solid
+    angle on a mirror ball), spread evenly over the row's arc inside the pixel, cut exactly at the pixel's edges;
+    rows and subsamples :data:`RIM_SPACING` source pixels apart, thinned to fit the scratch (``pfs``) held."""
+    rho_lo, rho_hi = _rim_span(row, col, h, w)
+    if rho_hi < RIM_POLAR_SPAN * rho_lo:
+        return 0, 0.0
+    a0, a1 = 2.0 * col / w - 1.0, 2.0 * (col + 1) / w - 1.0
+    b0, b1 = 1.0 - 2.0 * (row + 1) / h, 1.0 - 2.0 * row / h
+    centre = math.atan2(0.5 * (b0 + b1), 0.5 * (a0 + a1))
+    lo, hi = 0.0, 0.0
+    for i in range(4):
+        d = _wrapped_angle(math.atan2(b0 if i < 2 else b1, a0 if i % 2 == 0 else a1) - centre)
+        lo, hi = min(lo, d), max(hi, d)
+    span = rho_hi - rho_lo
+    u0, v0 = _ball_point(rho_lo + 0.25 * span, centre)  # the source pixels the footprint spans, radially
+    u1, v1 = _ball_point(rho_lo + 0.75 * span, centre)
+    radial = 2.0 * _source_step(SPHERE, tgt_axes, 0, u0, v0, u1, v1, rotation, src_kind, src_axes, src_h, src_w)
+    u0, v0 = _ball_point(rho_hi, centre + 0.25 * (hi - lo) + lo)  # and round its widest arc
+    u1, v1 = _ball_point(rho_hi, centre + 0.75 * (hi - lo) + lo)
+    round_ = 2.0 * _source_step(SPHERE, tgt_axes, 0, u0, v0, u1, v1, rotation, src_kind, src_axes, src_h, src_w)
+    rows = max(2, int(math.ceil(radial / RIM_SPACING)))
+    per_row = max(2, int(math.ceil(round_ / RIM_SPACING)))
+    budget = pfs.shape[0] - 1  # a row's arc may fall in pieces, each rounded up: a subsample more each
+    rows_budget = 3 * budget // 4  # the rest for split bands
+    if rows * (per_row + 1) > rows_budget:
+        rows = max(1, min(rows, int(rows * math.sqrt(rows_budget / (rows * (per_row + 1.0))))))
+        per_row = max(1, rows_budget // rows - 1)
+        rows = max(1, min(rows, rows_budget // (per_row + 1)))
+    cuts = np.empty(10)
+    n, wsum, d_rho = 0, 0.0, span / rows
+    r_out = math.cos(0.5 * rho_lo)
+    outer = _disc_in_square(r_out, a0, a1, b0, b1)
+    for i in range(rows):
+        r_in = math.cos(0.5 * (rho_lo + (i + 1) * d_rho))
+        inner = _disc_in_square(r_in, a0, a1, b0, b1)
+        band = outer - inner  # the pixel's share of the ring between this row's edges, exactly
+        rho = rho_lo + (i + 0.5) * d_rho
+        m = _arc_cuts(math.cos(0.5 * rho), a0, a1, b0, b1, centre, lo, hi, cuts)
+        inside = _arc_inside(math.cos(0.5 * rho), a0, a1, b0, b1, centre, cuts, m)
+        # Where the pixel's edge runs along the rings (by the disc's top, bottom and sides) the band is only partly
+        # in the pixel and its middle arc stands for it badly (a one-pixel sun there 2 % off): split in RIM_SPLIT.
+        split = 1
+        if abs(inside * math.cos(0.5 * rho) * (r_out - r_in) - band) > 0.01 * band \
+                and n + (RIM_SPLIT + rows - i) * (per_row + 1) <= budget:
+            split = RIM_SPLIT
+        sub_out = outer
+        for j in range(split):
+            sub_r = math.cos(0.5 * (rho_lo + (i + (j + 1.0) / split) * d_rho))
+            sub_in = inner if j == split - 1 else _disc_in_square(sub_r, a0, a1, b0, b1)
+            sub_rho = rho_lo + (i + (j + 0.5) / split) * d_rho
+            count = per_row if split == 1 else max(1, int(math.ceil(per_row * (sub_out - sub_in) / band)))
+            n, wsum = _arc_samples(sub_rho, sub_out - sub_in, count, a0, a1, b0, b1, centre, lo, hi, cuts, tgt_axes,
+                                   rotation, src_kind, src_axes, src_h, src_w, pfs, pxs, pys, pws, n, wsum)
+            sub_out = sub_in
+        outer, r_out = inner, r_in
+    if rho_lo == 0.0 and n < pfs.shape[0]:
+        # The rows are the midpoint rule in ρ of g(ρ) = ∫ L dA, which vanishes at the rim direction with slope
+        # g'(0) = ¼ L(0) Δα (dA = ¼ sin ρ dρ dα): the rule is off by −Δρ²/24 · g'(0) there (Euler–Maclaurin), a
+        # one-pixel sun at the rim direction 0.37 % over. One subsample at the rim direction with that weight,
+        # negative, takes it off; counted in the weights' sum too, so a uniform map stays uniform.
+        m = _arc_cuts(1.0 - 1e-12, a0, a1, b0, b1, centre, lo, hi, cuts)
+        weight = -d_rho * d_rho * _arc_inside(1.0 - 1e-12, a0, a1, b0, b1, centre, cuts, m) / 96.0
+        if weight < 0.0:
+            _ball_sample(0.0, centre, weight, tgt_axes, rotation, src_kind, src_axes, src_h, src_w, pfs, pxs, pys,
+                         pws, n)
+            wsum += weight
+            n += 1
+    return n, wsum
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _ball_sample(rho, alpha, weight, tgt_axes, rotation, src_kind, src_axes, src_h, src_w, pfs, pxs, pys, pws,
+                 n):  # pragma: no cover - compiled
+    """Store subsample ``n``: the mirror ball's point (``rho``, ``alpha``) (:func:`_ball_point`) as a source
+    position, with ``weight``."""
+    u, v = _ball_point(rho, alpha)
+    x, y, z, _ = target_direction(SPHERE, tgt_axes, 0, u, v)
+    rx, ry, rz = _turned(x, y, z, rotation)
+    pfs[n], pxs[n], pys[n] = source_position(src_kind, src_axes, rx, ry, rz, src_h, src_w)
+    pws[n] = weight
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _arc_inside(r, a0, a1, b0, b1, centre, cuts, m):  # pragma: no cover - compiled
+    """Length (in angle) of the circle of radius ``r`` inside square [a0, a1] × [b0, b1], from its ``m`` cuts."""
+    inside = 0.0
+    for j in range(m - 1):
+        mid = centre + 0.5 * (cuts[j] + cuts[j + 1])
+        a, b = r * math.cos(mid), r * math.sin(mid)
+        if a0 <= a <= a1 and b0 <= b <= b1:
+            inside += cuts[j + 1] - cuts[j]
+    return inside
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _arc_samples(rho, area, per_row, a0, a1, b0, b1, centre, lo, hi, cuts, tgt_axes, rotation, src_kind, src_axes,
+                 src_h, src_w, pfs, pxs, pys, pws, n, wsum):  # pragma: no cover - compiled
+    """Subsamples along the circle ``rho`` from a mirror ball's rim direction where it crosses the square, about
+    ``per_row`` spread evenly over its pieces inside, weighing ``area`` in all, stored from ``n``; (n, wsum) after."""
+    r = math.cos(0.5 * rho)
+    m = _arc_cuts(r, a0, a1, b0, b1, centre, lo, hi, cuts)
+    inside = _arc_inside(r, a0, a1, b0, b1, centre, cuts, m)
+    if inside <= 0.0 or area <= 0.0:
+        return n, wsum
+    for j in range(m - 1):
+        mid = centre + 0.5 * (cuts[j] + cuts[j + 1])
+        a, b = r * math.cos(mid), r * math.sin(mid)
+        length = cuts[j + 1] - cuts[j]
+        if not (a0 <= a <= a1 and b0 <= b <= b1) or length <= 0.0:
+            continue
+        count = min(max(1, int(round(per_row * length / inside))), pfs.shape[0] - n)  # the budget bounds it
+        if count <= 0:
+            break
+        weight = area * length / (inside * count)
+        for q in range(count):
+            _ball_sample(rho, centre + cuts[j] + (q + 0.5) * length / count, weight, tgt_axes, rotation, src_kind,
+                         src_axes, src_h, src_w, pfs, pxs, pys, pws, n)
+            wsum += weight
+            n += 1
+    return n, wsum
 
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, rates, rotation, src_kind, src_axes, src_h, src_w, pfs, pxs,
-                pys, pws):  # pragma: no cover - compiled
+                pys, pws, polar_rim=False):  # pragma: no cover - compiled
     """One target pixel's subsamples — ku × kv, its cells graded towards its neighbours' rates (:func:`_graded`);
     ``rates`` = (ku, kv, ku left, ku right, kv above, kv below) (:func:`_pixel_rates`, or k six times): their
     source positions (pfs, pxs, pys) and weights ``dω/(du dv)`` × cell area (pws), those off a disc left out;
     returns (count, Σ weights). A disc's rim pixel with every subsample off the disc gets its centre's (rim)
-    direction, weight 1."""
+    direction, weight 1. With ``polar_rim`` (the rate automatic), a mirror ball's pixels by its rim are sampled
+    round its rim direction (:func:`_rim_subsamples`)."""
+    if polar_rim and tgt_kind == SPHERE:
+        n, wsum = _rim_subsamples(tgt_axes, row, col, h, w, rotation, src_kind, src_axes, src_h, src_w, pfs, pxs,
+                                  pys, pws)
+        if n > 0:
+            return n, wsum
     ku, kv, left, right, above, below = rates
     n, wsum = 0, 0.0
     for i in range(ku * kv + 1):
@@ -777,7 +1030,7 @@ def resample_into(src_kind, src, valid, levels, reduced, row_offsets, caps, src_
             here = _pixel_rates(rates, tgt_kind, row, col, h, w, k, k_max)
             _pixel(src_kind, src, valid, levels, reduced, row_offsets, caps, src_axes, src_h, src_w, tgt_kind,
                    tgt_axes, face, row, col, h, w, here, rotation, pfs, pxs, pys, pws, wx, wy, value, tile,
-                   scratch, acc)
+                   scratch, acc, k_max > k)
             for c in range(3):
                 out[line - first, col, c] = acc[c]
 
@@ -785,11 +1038,11 @@ def resample_into(src_kind, src, valid, levels, reduced, row_offsets, caps, src_
 @njit(cache=True, inline="always", error_model="numpy")
 def _pixel(src_kind, src, valid, levels, reduced, row_offsets, caps, src_axes, src_h, src_w, tgt_kind, tgt_axes,
            face, row, col, h, w, rates, rotation, pfs, pxs, pys, pws, wx, wy, value, tile, scratch,
-           acc):  # pragma: no cover - compiled
+           acc, polar_rim):  # pragma: no cover - compiled
     """``acc`` = the value of target pixel (face, row, col) of an h × w face at ``rates``
-    (:func:`_subsamples`; :func:`resample_into`'s arguments; the rest is scratch)."""
+    (:func:`_subsamples`, ``polar_rim`` as there; :func:`resample_into`'s arguments; the rest is scratch)."""
     n, wsum = _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, rates, rotation, src_kind, src_axes, src_h,
-                          src_w, pfs, pxs, pys, pws)
+                          src_w, pfs, pxs, pys, pws, polar_rim)
     acc[0], acc[1], acc[2] = 0.0, 0.0, 0.0
     tiled = src_kind == LATLONG or src_kind == CUBE  # sources whose taps are all valid (no renormalisation)
     if not (tiled and _same_face(pfs, n)
@@ -811,7 +1064,7 @@ def pixel_into(src_kind, src, valid, levels, reduced, row_offsets, caps, src_axe
     """:func:`_pixel` compiled apart at a fixed rate k, for kernels that need the general path for a rare pixel."""
     _pixel(src_kind, src, valid, levels, reduced, row_offsets, caps, src_axes, src_h, src_w, tgt_kind, tgt_axes,
            face, row, col, h, w, (k, k, k, k, k, k), rotation, pfs, pxs, pys, pws, wx, wy, value, tile, scratch,
-           acc)
+           acc, False)
 
 
 # ---- cached footprint weights ---------------------------------------------------------------------------------------
@@ -931,7 +1184,7 @@ def _pixel_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, caps
     """One target pixel's taps into ``idx``/``wts`` (its row of the rates already in ``rates``); returns how many."""
     here = _pixel_rates(rates, tgt_kind, row, col, h, w, k, k_max)
     n, wsum = _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, here, rotation, src_kind, src_axes,
-                          src_h, src_w, pfs, pxs, pys, pws)
+                          src_h, src_w, pfs, pxs, pys, pws, k_max > k)
     scale = 1.0 / wsum
     t = -1
     if (src_kind == LATLONG or src_kind == CUBE) and _same_face(pfs, n):
