@@ -36,10 +36,21 @@ def _disc_area_in_pixel(row, col, n, k=1500):
 def test_a_rim_pixels_rows_weigh_its_area_on_the_disc(row, col):
     """Every sampled rim pixel's weights (less the one at the rim direction) sum to its area on the disc; pixels
     whose ρ spans less than RIM_POLAR_SPAN× its least are left to the plain cells (0 subsamples)."""
+    _check_rim_pixel(row, col, 128, 256)
+
+
+@pytest.mark.parametrize("row, col", [(256, 0), (60, 80), (511, 250)])
+def test_a_large_balls_rim_pixel_fits_its_scratch(row, col):
+    """A ball of 512 from a lat-long of 2048 rows: its rim pixels want more rows and subsamples than the scratch
+    (k_max² = 1024) holds; both are spread wider alike, and the weights still sum to the pixel's area."""
+    _check_rim_pixel(row, col, 512, 2048)
+
+
+def _check_rim_pixel(row, col, n, source_rows):
     from lightprobe.envmap import fused
 
-    n = 128
-    count, wsum, weights = _rim_call(row, col, n, 256)
+    count, wsum, weights = _rim_call(row, col, n, source_rows)
+    assert count <= 32 * 32 + 1
     lo, hi = fused._rim_span.py_func(row, col, n, n)
     if hi < fused.RIM_POLAR_SPAN * lo:
         assert count == 0
