@@ -90,3 +90,19 @@ def test_a_large_lat_longs_sun_keeps_its_energy_to_a_mirror_balls_rim(rows, ball
     assert resampler._flux is None  # the rows alone hold it
     worst = np.nanmax(np.abs(resampler.energy_gains()))
     assert worst < 2e-3, f"{100 * worst:.3f} %"
+
+
+def test_the_compiled_disc_area_is_the_layouts_one():
+    """fused._quadrant_area (one point, any radius, compiled) equals layouts._quarter_disc_area (arrays, the unit
+    disc) scaled by r², and a pixel's area from it is its area on the disc."""
+    from lightprobe.envmap import fused
+    from lightprobe.layouts import _quarter_disc_area
+
+    rng = np.random.default_rng(3)
+    for x, y, r in zip(rng.uniform(-1.3, 1.3, 200), rng.uniform(-1.3, 1.3, 200), rng.uniform(0.2, 1.2, 200)):
+        want = r * r * float(_quarter_disc_area(np.array(x / r), np.array(y / r)))
+        assert fused._quadrant_area.py_func(x, y, r) == pytest.approx(want, rel=1e-12, abs=1e-15)
+    for row, col in ((62, 127), (10, 33), (127, 64)):
+        square = fused._disc_square.py_func(row, col, 128, 128)
+        assert fused._disc_in_square.py_func(1.0, *square) == pytest.approx(_disc_area_in_pixel(row, col, 128),
+                                                                            rel=2e-3)

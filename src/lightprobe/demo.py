@@ -282,6 +282,8 @@ def _gain_pictures(rep: Report) -> str:
     into_ball = Resampler(cube, cube.grid_shape(64), layout("sphere"), 64).without_flux_correction().energy_gains()
     ball_strip = np.concatenate(list(into_ball), axis=1)
     surplus = balance.face_texel_integrals(64) / pixel_solid_angles(cube, cube.grid_shape(64))[0] - 1
+    big_to_ball = Resampler(latlong, latlong.grid_shape(256), ball, 128).energy_gains()  # not flux-corrected
+    back = big_to_ball[128 - 43:128 + 43, 256 - 43:256 + 43]  # ±30° round the ball's rim direction (−Z)
     scale = "black 0, white 1 % or more; grey: no sphere, or within 25° of a rim direction"
     return (rep.display_picture("energy_ball_one_rate", heatmap(np.abs(one_rate), 0.01),
                                 f"mirror ball 128 → angular 64, one rate k = {k}: |gain| of a sun in each pixel "
@@ -301,6 +303,11 @@ def _gain_pictures(rep: Report) -> str:
                                   "direction spread over a ring, up to 40 % off; it used to be left so, and is now "
                                   "corrected like the faint rest (≤ 1.5 %): after it every pixel is exact (black 0, "
                                   "white 5 % or more)", width=768)
+            + rep.display_picture("energy_latlong_ball_rim", heatmap(np.abs(back), 0.002),
+                                  "lat-long 256 → mirror ball 128 (too large for the flux correction), every pixel "
+                                  "with no margin, the lat-long's ±30° round the ball's rim direction: its rim pixels "
+                                  "are sampled round that direction; with even cells in the image this was a moiré "
+                                  "up to 33 % (black 0, white 0.2 %, the bar, or more)", width=256)
             + rep.display_picture("energy_cube_surplus", heatmap(np.abs(surplus), 0.008),
                                   "what the balance removes: one face of a 64-texel cube, each texel's B-spline "
                                   "integral against its solid angle, whatever the target (black 0, white 0.8 %): "

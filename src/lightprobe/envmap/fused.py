@@ -731,6 +731,7 @@ def _pixel_rates(rates, tgt_kind, row, col, h, w, k, k_max):  # pragma: no cover
 RIM_POLAR_SPAN = 2.0
 RIM_MARK = -1  # in the rates buffer: a pixel sampled round the rim direction
 RIM_EDGE = 3  # a plain neighbour's end cells at its edge: 2/(k + 3k), half a cell (see _pixel_rates)
+RIM_R = 1.0 - 1e-12  # the image radius of the rim direction as sampled: a hair inside the disc
 RIM_SPLIT = 8  # sub-rows of a ring band that the pixel's edge cuts along its length
 RIM_SPACING = 0.25  # source pixels between a rim pixel's rows and its subsamples along a row (at 0.5: 0.36 % by the
 #                     ring's inner edge, lat-long 512 → mirror ball 256; the rows' error at the rim direction itself
@@ -741,7 +742,7 @@ RIM_SPACING = 0.25  # source pixels between a rim pixel's rows and its subsample
 def _ball_point(rho, alpha):  # pragma: no cover - compiled
     """Image coordinates (u, v) of the point of a mirror ball ``rho`` radians from its rim direction, at angle
     ``alpha`` round the image centre (from image right, counter-clockwise); kept a hair inside the disc."""
-    r = min(math.cos(0.5 * rho), 1.0 - 1e-12)
+    r = min(math.cos(0.5 * rho), RIM_R)
     return 0.5 * (1.0 + r * math.cos(alpha)), 0.5 * (1.0 - r * math.sin(alpha))
 
 
@@ -786,16 +787,14 @@ def _arc_cuts(r, a0, a1, b0, b1, centre, lo, hi, cuts):  # pragma: no cover - co
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _quadrant_area(x, y, r):  # pragma: no cover - compiled
-    """Area of the disc of radius ``r`` round the origin within [0, x] × [0, y], signed as x·y."""
-    ax, ay = min(abs(x), r), abs(y)
-    flat = math.sqrt(max(r * r - ay * ay, 0.0))  # where the circle is at height y
-    if ax <= flat:
-        area = ay * ax
-    else:
-        def_x = ax * math.sqrt(max(r * r - ax * ax, 0.0)) + r * r * math.asin(min(ax / r, 1.0))
-        def_f = flat * math.sqrt(max(r * r - flat * flat, 0.0)) + r * r * math.asin(min(flat / r, 1.0))
-        area = ay * flat + 0.5 * (def_x - def_f)
-    return area if (x >= 0.0) == (y >= 0.0) else -area
+    """Signed area of the rectangle between (0, 0) and (x, y) inside the disc of radius ``r`` round the origin: r² ×
+    :func:`lightprobe.layouts._quarter_disc_area` at (x/r, y/r), written again for one point in compiled code."""
+    a, b = min(abs(x) / r, 1.0), min(abs(y) / r, 1.0)
+    x_star = math.sqrt(max(1.0 - b * b, 0.0))  # where the unit circle crosses height b
+    lo = min(a, x_star)
+    area = b * lo + 0.5 * (a * math.sqrt(max(1.0 - a * a, 0.0)) + math.asin(a)
+                           - lo * math.sqrt(max(1.0 - lo * lo, 0.0)) - math.asin(lo))
+    return r * r * (area if (x >= 0.0) == (y >= 0.0) else -area)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -806,11 +805,16 @@ def _disc_in_square(r, a0, a1, b0, b1):  # pragma: no cover - compiled
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def _disc_square(row, col, h, w):  # pragma: no cover - compiled
+    """Pixel (row, col) of an h × w disc image as (a0, a1, b0, b1) in disc coordinates (a right, b up)."""
+    return 2.0 * col / w - 1.0, 2.0 * (col + 1) / w - 1.0, 1.0 - 2.0 * (row + 1) / h, 1.0 - 2.0 * row / h
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def _rim_span(row, col, h, w):  # pragma: no cover - compiled
     """(least, greatest) ρ from the rim direction over mirror-ball pixel (row, col) of h × w; (1, 0) for a pixel off
     the disc or holding its centre."""
-    a0, a1 = 2.0 * col / w - 1.0, 2.0 * (col + 1) / w - 1.0
-    b0, b1 = 1.0 - 2.0 * (row + 1) / h, 1.0 - 2.0 * row / h
+    a0, a1, b0, b1 = _disc_square(row, col, h, w)
     near = math.hypot(min(max(0.0, a0), a1), min(max(0.0, b0), b1))
     far = math.sqrt(max(a0 * a0, a1 * a1) + max(b0 * b0, b1 * b1))
     if near >= 1.0 or near <= 0.0:
@@ -841,8 +845,7 @@ def _rim_subsamples(tgt_axes, row, col, h, w, rotation, src_kind, src_axes, src_
     rho_lo, rho_hi = _rim_span(row, col, h, w)
     if rho_hi < RIM_POLAR_SPAN * rho_lo:
         return 0, 0.0
-    a0, a1 = 2.0 * col / w - 1.0, 2.0 * (col + 1) / w - 1.0
-    b0, b1 = 1.0 - 2.0 * (row + 1) / h, 1.0 - 2.0 * row / h
+    a0, a1, b0, b1 = _disc_square(row, col, h, w)
     centre = math.atan2(0.5 * (b0 + b1), 0.5 * (a0 + a1))
     lo, hi = 0.0, 0.0
     for i in range(4):
@@ -887,9 +890,13 @@ def _rim_subsamples(tgt_axes, row, col, h, w, rotation, src_kind, src_axes, src_
             sub_r = math.cos(0.5 * (rho_lo + (i + (j + 1.0) / split) * d_rho))
             sub_in = inner if j == split - 1 else _disc_in_square(sub_r, a0, a1, b0, b1)
             sub_rho = rho_lo + (i + (j + 0.5) / split) * d_rho
-            count = per_row if split == 1 else max(1, int(math.ceil(per_row * (sub_out - sub_in) / band)))
-            n, wsum = _arc_samples(sub_rho, sub_out - sub_in, count, a0, a1, b0, b1, centre, lo, hi, cuts, tgt_axes,
-                                   rotation, src_kind, src_axes, src_h, src_w, pfs, pxs, pys, pws, n, wsum)
+            count = per_row
+            if split > 1:  # this sub-row's own arc
+                count = max(1, int(math.ceil(per_row * (sub_out - sub_in) / band)))
+                m = _arc_cuts(math.cos(0.5 * sub_rho), a0, a1, b0, b1, centre, lo, hi, cuts)
+                inside = _arc_inside(math.cos(0.5 * sub_rho), a0, a1, b0, b1, centre, cuts, m)
+            n, wsum = _arc_samples(sub_rho, sub_out - sub_in, count, a0, a1, b0, b1, centre, cuts, m, inside,
+                                   tgt_axes, rotation, src_kind, src_axes, src_h, src_w, pfs, pxs, pys, pws, n, wsum)
             sub_out = sub_in
         outer, r_out = inner, r_in
     if rho_lo == 0.0 and n < pfs.shape[0]:
@@ -897,8 +904,8 @@ def _rim_subsamples(tgt_axes, row, col, h, w, rotation, src_kind, src_axes, src_
         # g'(0) = ¼ L(0) Δα (dA = ¼ sin ρ dρ dα): the rule is off by −Δρ²/24 · g'(0) there (Euler–Maclaurin), a
         # one-pixel sun at the rim direction 0.37 % over. One subsample at the rim direction with that weight,
         # negative, takes it off; counted in the weights' sum too, so a uniform map stays uniform.
-        m = _arc_cuts(1.0 - 1e-12, a0, a1, b0, b1, centre, lo, hi, cuts)
-        weight = -d_rho * d_rho * _arc_inside(1.0 - 1e-12, a0, a1, b0, b1, centre, cuts, m) / 96.0
+        m = _arc_cuts(RIM_R, a0, a1, b0, b1, centre, lo, hi, cuts)
+        weight = -d_rho * d_rho * _arc_inside(RIM_R, a0, a1, b0, b1, centre, cuts, m) / 96.0
         if weight < 0.0:
             _ball_sample(0.0, centre, weight, tgt_axes, rotation, src_kind, src_axes, src_h, src_w, pfs, pxs, pys,
                          pws, n)
@@ -932,13 +939,12 @@ def _arc_inside(r, a0, a1, b0, b1, centre, cuts, m):  # pragma: no cover - compi
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _arc_samples(rho, area, per_row, a0, a1, b0, b1, centre, lo, hi, cuts, tgt_axes, rotation, src_kind, src_axes,
+def _arc_samples(rho, area, per_row, a0, a1, b0, b1, centre, cuts, m, inside, tgt_axes, rotation, src_kind, src_axes,
                  src_h, src_w, pfs, pxs, pys, pws, n, wsum):  # pragma: no cover - compiled
-    """Subsamples along the circle ``rho`` from a mirror ball's rim direction where it crosses the square, about
-    ``per_row`` spread evenly over its pieces inside, weighing ``area`` in all, stored from ``n``; (n, wsum) after."""
+    """Subsamples along the circle ``rho`` from a mirror ball's rim direction where it crosses the square (its ``m``
+    cuts, :func:`_arc_cuts`, and its length ``inside``, :func:`_arc_inside`), about ``per_row`` spread evenly over
+    its pieces inside, weighing ``area`` in all, stored from ``n``; (n, wsum) after."""
     r = math.cos(0.5 * rho)
-    m = _arc_cuts(r, a0, a1, b0, b1, centre, lo, hi, cuts)
-    inside = _arc_inside(r, a0, a1, b0, b1, centre, cuts, m)
     if inside <= 0.0 or area <= 0.0:
         return n, wsum
     for j in range(m - 1):
