@@ -12,6 +12,7 @@ one-time compilation of the numba kernels is measured first and reported on its 
 from __future__ import annotations
 
 import contextlib
+import functools
 import html
 import os
 import secrets
@@ -228,11 +229,20 @@ def _convert_peak_memory(env, folder) -> dict[str, float]:
     return peaks
 
 
-def _every_pixel_gains() -> dict[str, tuple[float, float]]:
-    """(worst |gain|, share over 0.2 %) of a one-pixel sun in every source pixel, for a few conversions."""
+@functools.lru_cache(maxsize=4)
+def _pair_gains(source: str, size: int, target: str, out_size: int, margin: float | None) -> np.ndarray:
+    """Resampler.energy_gains(rim_margin=margin) of a pair, read-only: a table row and a heat map share it."""
     from .envmap import Resampler
     from .layouts import layout
 
+    src = layout(source)
+    gains = Resampler(src, src.grid_shape(size), layout(target), out_size).energy_gains(rim_margin=margin)
+    gains.setflags(write=False)
+    return gains
+
+
+def _every_pixel_gains() -> dict[str, tuple[float, float]]:
+    """(worst |gain|, share over 0.2 %) of a one-pixel sun in every source pixel, for a few conversions."""
     cases = (("lat-long 128 → cube 32", "latlong", 128, "cube", 32),
              ("angular 128 → lat-long 64 (was 15.5 %; 0.3 % before the flux correction)", "angular", 128,
               "latlong", 64),
@@ -255,9 +265,7 @@ def _every_pixel_gains() -> dict[str, tuple[float, float]]:
               "rim pixels were sampled round it)", "latlong", 256, "sphere", 128, None))
     out = {}
     for label, source, size, target, out_size, *margin in cases:  # the margin: 25° unless a row gives its own
-        src = layout(source)
-        gains = Resampler(src, src.grid_shape(size), layout(target), out_size).energy_gains(
-            rim_margin=margin[0] if margin else 25.0)
+        gains = _pair_gains(source, size, target, out_size, margin[0] if margin else 25.0)
         gains = np.abs(gains[np.isfinite(gains)])
         out[label] = (float(gains.max()), float((gains > 2e-3).mean()))
     return out
@@ -282,7 +290,7 @@ def _gain_pictures(rep: Report) -> str:
     into_ball = Resampler(cube, cube.grid_shape(64), layout("sphere"), 64).without_flux_correction().energy_gains()
     ball_strip = np.concatenate(list(into_ball), axis=1)
     surplus = balance.face_texel_integrals(64) / pixel_solid_angles(cube, cube.grid_shape(64))[0] - 1
-    big_to_ball = Resampler(latlong, latlong.grid_shape(256), ball, 128).energy_gains()  # not flux-corrected
+    big_to_ball = _pair_gains("latlong", 256, "sphere", 128, None)  # not flux-corrected; the table's row too
     back = big_to_ball[128 - 43:128 + 43, 256 - 43:256 + 43]  # ±30° round the ball's rim direction (−Z)
     scale = "black 0, white 1 % or more; grey: no sphere, or within 25° of a rim direction"
     return (rep.display_picture("energy_ball_one_rate", heatmap(np.abs(one_rate), 0.01),
