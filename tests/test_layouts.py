@@ -211,3 +211,18 @@ def test_a_discs_padding_counts_each_pixel_by_its_share(name, n):
         inside = (np.hypot(a[None, :], a[:, None]) <= 1).reshape(n, 24, n, 24).mean(axis=(1, 3))
         slivers = rim & (inside < 0.2)
         assert slivers.any() and (certainty[slivers] < 0.5 * inside[slivers]).all()
+
+
+@pytest.mark.parametrize("lay", ALL, ids=IDS)
+def test_the_shared_valid_mask_is_the_mask_read_only_and_a_discs_is_not_copied(lay):
+    """shared_valid_mask is valid_mask, read-only (a reader cannot spoil a disc's cached table); a disc's is one
+    table however often it is asked for — a 4k disc's is 10 MiB, and a conversion used to hold a copy of it."""
+    grid = lay.grid_shape(37)
+    shared = lay.shared_valid_mask(grid)
+    np.testing.assert_array_equal(shared, lay.valid_mask(grid))
+    assert not shared.flags.writeable
+    with pytest.raises(ValueError):
+        shared[(0,) * shared.ndim] = not shared[(0,) * shared.ndim]
+    if lay in (ANGULAR, SPHERE):
+        assert lay.shared_valid_mask(grid) is shared
+        assert lay.valid_mask(grid) is not shared and lay.valid_mask(grid).flags.writeable

@@ -14,6 +14,7 @@ import pytest
 from conftest import shared
 from lightprobe.envmap import read_envmap
 from lightprobe.io import write_image
+from lightprobe.layouts import LATLONG
 from test_hardening import clean_failure, lightprobe, peak_of
 
 
@@ -160,3 +161,32 @@ def test_llvm_pages_are_released_and_kernels_still_run():
     advised, dropped, low, high, kept = out.stdout.split()
     assert int(advised) > 50 and int(dropped) > 20, out.stdout  # MiB advised, MiB of file pages gone
     assert float(low) == float(high) == 1.0 and abs(float(kept) - 1) < 1e-5
+
+
+@pytest.mark.parametrize("target, rows, corrected", [
+    ("angular", 2048, False),  # a 4k lat-long into a disc: not flux-corrected, so nor is the small map
+    ("sphere", 2048, False),
+    ("sphere", 128, True),  # a small one is, and so is the small map it is linked on
+    ("cube", 2048, False),
+])
+def test_kernels_are_linked_on_a_map_that_takes_the_conversions_route(monkeypatch, target, rows, corrected):
+    """envmap.link_kernels runs a conversion's kernels on a small map before the big one is read: a lat-long of 64
+    rows into a disc would be flux-corrected where a 4k one is not, and linking that correction kept ~5 MiB beside
+    the map. The small map takes the same turn as the conversion itself would."""
+    from lightprobe.envmap import resampling
+    from lightprobe.layouts import layout
+
+    real = resampling._corrected(LATLONG, (rows, 2 * rows), layout(target), None)
+    assert real == corrected
+    seen = []
+    build = resampling._flux_stencil
+
+    def spy(source_layout, source_grid, target_layout, *args):
+        seen.append((source_grid, resampling._corrected(source_layout, source_grid, target_layout, None)))
+        return build(source_layout, source_grid, target_layout, *args)
+
+    monkeypatch.setattr(resampling, "_flux_stencil", spy)
+    size = layout(target).default_size(2 * rows * rows)
+    resampling.link_kernels(LATLONG, 2 * rows * rows, layout(target), size)
+    assert seen and all(small == corrected for _, small in seen), seen
+    assert all(grid[0] <= 256 for grid, _ in seen), seen  # a small map: at most 256 rows

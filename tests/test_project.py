@@ -48,6 +48,37 @@ def test_imports_flow_one_way():
                     assert FLOORS[target] <= FLOORS[name], f"{name} imports {target}, which is above it"
 
 
+# Import names whose distribution is named otherwise (llvmlite comes with numba, dask with distributed).
+DISTRIBUTIONS = {"PIL": "pillow", "yaml": "pyyaml", "OpenImageIO": "openimageio", "flip_evaluator": "flip-evaluator",
+                 "llvmlite": "numba", "dask": "distributed"}
+
+
+def test_every_package_the_source_imports_is_installed_with_it():
+    """Each third-party module ``src/lightprobe`` imports is a dependency of the package, or of an extra that a
+    feature names (reference, engines, dask) — never of the ``test`` extra alone: CI installs that extra, a user's
+    ``setup.sh`` does not. scipy was ``test``-only while a lat-long → lat-long ``convert`` imported scipy.sparse,
+    which then failed in the README's own set-up with a traceback."""
+    import sys
+    import tomllib
+
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    extras = {name: reqs for name, reqs in project["optional-dependencies"].items() if name not in ("test", "bench")}
+    declared = {re.split(r"[<>=!~\[ ;]", req, maxsplit=1)[0].lower()
+                for req in project["dependencies"] + [r for reqs in extras.values() for r in reqs]}
+    missing = set()
+    for path in (ROOT / "src" / "lightprobe").rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                     else [node.module] if isinstance(node, ast.ImportFrom) and node.level == 0 else [])
+            for name in names:
+                top = name.split(".")[0]
+                if top in sys.stdlib_module_names or top == "lightprobe":
+                    continue
+                if DISTRIBUTIONS.get(top, top).lower() not in declared:
+                    missing.add(f"{top} ({path.relative_to(ROOT)})")
+    assert not missing, f"imported but not a dependency: {sorted(missing)}"
+
+
 def test_compiled_kernels_are_cached_in_the_user_cache_folder(tmp_path):
     """numba's cache goes to $XDG_CACHE_HOME/lightprobe/numba, not beside the package (which may be read-only)."""
     import os

@@ -627,6 +627,25 @@ def test_a_whole_row_level_reads_the_rows_mean():
     assert np.ptp(reduced[offsets[2]:offsets[2] + width], axis=0).min() > 0  # max_level itself: still six means
 
 
+def test_a_width_that_cannot_be_halved_is_read_as_it_is():
+    """A lat-long whose width is not a multiple of 4 has no reduction (:func:`polar.max_level` 0): its rows are
+    read as they are, whatever level the lookups asked for — no empty row to fill with a mean (numpy warned
+    "Mean of empty slice" there)."""
+    import warnings
+
+    from lightprobe.envmap import polar
+
+    data = np.ones((15, 30, 3), np.float32)
+    levels = np.zeros(15, np.int64)
+    levels[:2] = 1, polar.max_level(30) + 1
+    assert polar.max_level(30) == 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        got = polar.reduced_rows(data, levels)
+    for want, have in zip(polar.no_reduction(15), got):
+        np.testing.assert_array_equal(have, want)
+
+
 def test_lookups_nearer_the_pole_than_their_pixel_spread_over_more_columns():
     """A mirror ball's pixel next to the zenith has its centre a few rows from the pole, its subsamples nearer:
     the rows between take its column spacing × sin θ_centre / sin θ_row, so the pole row is read whole. A

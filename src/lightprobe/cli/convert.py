@@ -48,7 +48,7 @@ def run(args) -> None:
     streamed = args.dst.suffix.lower() in HDR_WRITE_FORMATS
     writing = HDR_WRITE_BYTES if streamed else out_pixels * LDR_WRITE_BYTES_PER_PIXEL
     source = layout_named(args.layout) if args.layout else _detected(header)
-    _link_kernels(source, target, rotation, streamed)
+    _link_kernels(source, header.pixels, target, args.size or target.default_size(header.pixels), rotation, streamed)
     env = load(args.src, args.layout, extra_bytes=resample_memory(header.pixels, out_pixels, target, source) + writing,
                kernels=True,
                what=f"converting {args.src} ({header.width}×{header.height}) to {args.to} ({out_pixels} pixels)")
@@ -74,22 +74,16 @@ def _detected(header):
         return None
 
 
-def _link_kernels(source, target, rotation, streamed: bool) -> None:
-    """Link the conversion's compiled kernels on a small map of the source's layout before the map itself is read,
-    then let LLVM's pages go (:func:`lightprobe.jit.release_compiler_pages`): they would otherwise stay resident
-    beside the map through the conversion — 4k lat-long → cube: 321 → 257 MiB at the peak, 3.35 → 2.68× the map.
-    A path the small map does not take links its kernel later, reading back only the pages it needs."""
-    import numpy as np
-
-    from ..envmap import EnvMap, resample, resample_strips
+def _link_kernels(source, source_pixels: int, target, size: int, rotation, streamed: bool) -> None:
+    """Link the conversion's compiled kernels on a small map that takes its route before the map itself is read
+    (:func:`lightprobe.envmap.link_kernels`), then let LLVM's pages go (:func:`lightprobe.jit.release_compiler_pages`):
+    they would otherwise stay resident beside the map through the conversion — 4k lat-long → cube: 321 → 257 MiB at
+    the peak, 3.35 → 2.68× the map. A path the small map does not take links its kernel later, reading back only the
+    pages it needs."""
+    from ..envmap import link_kernels
     from ..jit import release_compiler_pages
 
     if source is None:  # the read that follows says why
         return
-    small = EnvMap(np.zeros(source.grid_shape(64) + (3,), np.float32), source)
-    if streamed:
-        for _ in resample_strips(small, target, 32, rotation=rotation)[1]:
-            pass
-    else:
-        resample(small, target, 32, rotation=rotation)
+    link_kernels(source, source_pixels, target, size, rotation=rotation, streamed=streamed)
     release_compiler_pages()

@@ -185,10 +185,10 @@ def reduced_rows(data: np.ndarray, levels: np.ndarray) -> tuple[np.ndarray, np.n
     A whole-row level (:func:`polar_levels`) fills its row at max_level with the mean of those W / 2^max_level
     values (in float64: a uniform row stays exactly uniform); the returned levels are the kernel's."""
     h, w = data.shape[:2]
-    if not levels.any():
-        return no_reduction(h)
     whole = np.nonzero(levels > max_level(w))[0]
     levels = kernel_levels(levels.astype(np.int64), w)
+    if not levels.any():  # nothing to reduce, or a width with no halving (W/4 not whole: max_level 0)
+        return no_reduction(h)
     row_offsets, caps, total = row_layout(levels, w)
     reduced = np.empty((total, 3), np.float32)
     _halve_rows(np.ascontiguousarray(data, np.float32), np.nonzero(levels)[0], levels, row_offsets, reduced)

@@ -24,12 +24,17 @@ MAX_FOOTPRINT_RATIO = 16  # source pixels per target pixel above which the sourc
 
 def _valid_pixels(lay: Layout, grid: tuple[int, ...]) -> int:
     """Pixels of ``grid`` that cover the sphere (no mask is made for layouts whose pixels all do)."""
-    return math.prod(grid) if lay.valid_fraction == 1.0 else int(lay.valid_mask(grid).sum())
+    return math.prod(grid) if lay.valid_fraction == 1.0 else int(np.count_nonzero(lay.shared_valid_mask(grid)))
 
 
-def _valid_ratio(source: EnvMap, target: Layout, grid: tuple[int, ...]) -> float:
-    """Valid source pixels per valid target pixel."""
-    return source.valid_pixels / max(_valid_pixels(target, grid), 1)
+def _target_valid(filled: Layout, grid: tuple[int, ...], faces: tuple[int, int, int]) -> np.ndarray:
+    """The kernels' table of valid target pixels, (faces, H, W) uint8, read-only (one array type for numba): a
+    1×1×1 table where every pixel is valid, else the layout's shared mask viewed as bytes (no copy)."""
+    if filled.valid_fraction == 1.0:
+        table = np.ones((1, 1, 1), dtype=np.uint8)
+        table.setflags(write=False)
+        return table
+    return filled.shared_valid_mask(grid).reshape(faces).view(np.uint8)
 
 
 def auto_samples(ratio: float) -> int:
@@ -82,6 +87,19 @@ def _reducible(layout: Layout, grid: tuple[int, ...]) -> bool:
     if layout.name == "sphere" and h // 2 < SPHERE_MIN_SIDE:
         return False
     return h % 2 == 0 and w % 2 == 0 and min(h, w) >= 8
+
+
+def _reduced_grid(layout: Layout, grid: tuple[int, ...], target: Layout,
+                  target_grid: tuple[int, ...]) -> tuple[Layout, tuple[int, ...]]:
+    """The (layout, grid) a source of ``layout`` and ``grid`` is read at into ``target_grid`` with its rate left
+    automatic: a cross as cube faces, halved (:func:`box_reduce`) while it has over :data:`MAX_FOOTPRINT_RATIO`
+    valid pixels per valid target pixel and :func:`_reducible` allows."""
+    if isinstance(layout, Cross):
+        layout, grid = CUBE, CUBE.grid_shape(layout.size_of(grid))
+    target_pixels = max(_valid_pixels(target, target_grid), 1)
+    while _valid_pixels(layout, grid) / target_pixels > MAX_FOOTPRINT_RATIO and _reducible(layout, grid):
+        grid = grid[:-2] + (grid[-2] // 2, grid[-1] // 2)
+    return layout, grid
 
 
 def resample(
@@ -142,6 +160,30 @@ def resample_strips(source: EnvMap, target: Layout, size: int | None = None, *, 
             yield top, block.transpose(1, 0, 2, 3).reshape(n, faces * w, 3)  # a cube file's rows: faces side by side
 
     return (h, faces * w), strips()
+
+
+def link_kernels(source: Layout, source_pixels: int, target: Layout, size: int, *,
+                 rotation: np.ndarray | None = None, streamed: bool = True) -> None:
+    """Run the compiled kernels of a conversion — a map of ``source_pixels`` in layout ``source`` into ``target`` of
+    ``size`` — once, on a small zero map that takes the same route, so they are linked (loaded or compiled) before
+    the map itself is read (``lightprobe convert``; see :func:`lightprobe.jit.release_compiler_pages`). The route
+    that matters is whether the flux is corrected (:func:`_corrected`): a lat-long of 64 rows into a disc is and a
+    4k one is not, and linked on 64 rows that correction's kernels (~5 MiB resident) stayed beside a 4k map that
+    never ran them. The small map doubles its rows until it takes the same turn (box reductions are numpy's: no
+    kernel to link)."""
+    grid = source.grid_shape(source.default_size(round(source_pixels * source.valid_fraction)))
+    reduced_layout, reduced = _reduced_grid(source, grid, target, target.grid_shape(size))
+    corrected = _corrected(reduced_layout, reduced, target, None)
+    rows = 64
+    while _corrected(source, source.grid_shape(rows), target, None) != corrected and rows < 1024:
+        rows *= 2
+    small = EnvMap(np.zeros(source.grid_shape(rows) + (3,), np.float32), source)
+    small_size = rows // 2  # ~10 source pixels a target pixel: read as it is, not box-reduced
+    if streamed:
+        for _ in resample_strips(small, target, small_size, rotation=rotation)[1]:
+            pass
+    else:
+        resample(small, target, small_size, rotation=rotation)
 
 
 def _cross_strips(plan: _Plan, target: Cross, strip_pixels: int):
@@ -216,9 +258,10 @@ def _prepared(source: EnvMap, target: Layout, size: int | None, samples: int | N
     grid = target.grid_shape(size)
     if isinstance(source.layout, Cross):  # exact rearrangement; the cube has a seamless padding
         source = EnvMap(source.layout.to_cube(source.data), CUBE)
-    while (samples is None and _valid_ratio(source, target, grid) > MAX_FOOTPRINT_RATIO
-           and _reducible(source.layout, source.grid)):
-        source = box_reduce(source)
+    if samples is None:
+        reduced = _reduced_grid(source.layout, source.grid, target, grid)[1]
+        while source.grid != reduced:
+            source = box_reduce(source)
     k, steps = supersampling(source.layout, source.grid, target, grid, rotation, samples)
     return source, grid, k, steps
 
@@ -395,8 +438,7 @@ def _plan(source: EnvMap, target: Layout, size: int | None, rotation, samples: i
         if source.all_valid:  # a cube's padding is valid everywhere: no table of ones for the kernel to read
             valid = np.ones((1, 1, 1), dtype=np.float32)
     all_valid = filled.valid_fraction == 1.0  # latlong, cube: no per-pixel mask
-    tgt_valid = (np.ones((1, 1, 1), dtype=np.uint8) if all_valid
-                 else filled.valid_mask(grid).reshape(faces).view(np.uint8))  # bool as bytes: no copy
+    tgt_valid = _target_valid(filled, grid, faces)
     args = (src_kind, img, valid, *reduction, _axes(source.layout), source.grid[-2], source.grid[-1],
             fused.CODES[filled.name], _axes(filled), faces[1], tgt_valid, all_valid, k, k_max, turn)
     by_symmetry = (symmetric and src_kind == fused.LATLONG and filled.name == "cube"
@@ -448,7 +490,7 @@ class Resampler:
         self.size = size or target.default_size(pixels)
         check_size(target, self.size)
         out_grid = target.grid_shape(self.size)
-        ratio = pixels / max(_valid_pixels(target, out_grid), 1)  # as resample's _valid_ratio measures it
+        ratio = pixels / max(_valid_pixels(target, out_grid), 1)  # as resample's _reduced_grid measures it
         self.offsets, self._flux = None, None
         reduced_first = samples is None and ratio > MAX_FOOTPRINT_RATIO and _reducible(source_layout, source_grid)
         if reduced_first or fused.CODES.get(source_layout.name) is None \
@@ -598,8 +640,7 @@ class _Taps:
             if source_layout.valid_fraction == 1.0:
                 valid = np.ones((1, 1, 1), np.float32)
         all_valid = filled.valid_fraction == 1.0
-        tgt_valid = (np.ones((1, 1, 1), np.uint8) if all_valid
-                     else filled.valid_mask(grid).reshape(faces).view(np.uint8))  # bool as bytes: no copy
+        tgt_valid = _target_valid(filled, grid, faces)
         turn = np.eye(3) if rotation is None else np.asarray(rotation, dtype=np.float64)
         self.kernel_args = (src_kind, src_shape, valid, index_map, levels, row_offsets, caps, _axes(source_layout),
                             source_grid[-2], source_grid[-1], fused.CODES[filled.name], _axes(filled), faces[1],
