@@ -126,11 +126,12 @@ def test_the_streamed_delivery_is_the_stored_taps_delivery():
 
 
 @pytest.mark.parametrize("source, size, target, out_size", [("cube", 64, "sphere", 32), ("latlong", 128, "sphere", 64),
-                                                          ("cube", 32, "angular", 32), ("latlong", 64, "angular", 24)])
+                                                          ("cube", 32, "angular", 32), ("latlong", 64, "angular", 16)])
 def test_a_disc_targets_rim_is_corrected_like_the_rest(source, size, target, out_size, monkeypatch):
     """Into a disc, the source pixels by the target's rim direction (which its outer rings spread over a ring) are
     corrected too: every pixel exact, no margin — 10–55 % off while they were ground. Lat-long 128 → mirror ball 64
-    needs weights over 0.5 there (13 % off at 0.5)."""
+    needs weights over 0.5 there (13 % off at 0.5). Lat-long 64 → angular 24, the pair here before, holds 0.19 %
+    uncorrected since an angular map's rim pixels are sampled round the rim direction; 64 → 16 still needs it."""
     src = layout(source)
     grid = src.grid_shape(size)
     resample_module._FLUX_CACHE.clear()

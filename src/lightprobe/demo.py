@@ -268,7 +268,9 @@ def _every_pixel_gains() -> dict[str, tuple[float, float]]:
               "sphere", 64, None),
              ("lat-long 128 → mirror ball 64, no margin (was 55 % there)", "latlong", 128, "sphere", 64, None),
              ("lat-long 256 → mirror ball 128, no margin (not flux-corrected; 33 % by the rim direction before its "
-              "rim pixels were sampled round it)", "latlong", 256, "sphere", 128, None))
+              "rim pixels were sampled round it)", "latlong", 256, "sphere", 128, None),
+             ("lat-long 256 → angular 128, no margin (not flux-corrected; 0.46 % by the rim direction before its "
+              "rim pixels were sampled round it)", "latlong", 256, "angular", 128, None))
     out = {}
     for label, source, size, target, out_size, *margin in cases:  # the margin: 25° unless a row gives its own
         gains = _pair_gains(source, size, target, out_size, margin[0] if margin else 25.0)

@@ -703,7 +703,7 @@ _FLUX_CACHE_BYTES = 256 << 20  # the corrections a process keeps (a batch conver
 # Lat-long sources are flux-corrected into discs up to this many pixels (as the conversion reads them, after any box
 # reduction): a 16–32-pixel disc's outer rings span 20–40° each, and a one-pixel sun read by them came out 0.26–0.74 %
 # off (no rate fixes a pixel that straddles the rim). A disc of 64 pixels or more from a larger source holds 0.2 %
-# by its rates (LATLONG_SPHERE_MAX_SAMPLES, fused.LATLONG_ANGULAR_SPACING) and, to a mirror ball's rim direction, by
+# by its rates (LATLONG_SPHERE_MAX_SAMPLES, fused.LATLONG_ANGULAR_SPACING) and, to its rim direction, by
 # its rim pixels' rows round it (fused._rim_subsamples); a 4k lat-long's correction would hold ~100 B a pixel while
 # it is made, more than convert may (tests/test_limits.py): there it is not made.
 LATLONG_FLUX_MAX_PIXELS = 1 << 16
