@@ -282,8 +282,7 @@ class _DiscLayout(Layout):
     def valid_mask(self, grid):
         """``solid_angles(grid) > 0`` without integrating the interior: every pixel wholly inside the disc is valid;
         of the rim pixels, those whose share of the disc is not 0 (a 1/n² part of the work)."""
-        self.check_grid(grid)
-        return _disc_valid_mask(self, grid[0]).copy()
+        return self.shared_valid_mask(grid).copy()
 
     def shared_valid_mask(self, grid):
         self.check_grid(grid)

@@ -766,7 +766,7 @@ def _ring_density(tgt_kind, rho_a, rho_b):  # pragma: no cover - compiled
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _ball_point(tgt_kind, rho, alpha):  # pragma: no cover - compiled
+def _rim_point(tgt_kind, rho, alpha):  # pragma: no cover - compiled
     """Image coordinates (u, v) of the point of a disc ``rho`` radians from its rim direction, at angle ``alpha``
     round the image centre (from image right, counter-clockwise); kept a hair inside the disc."""
     r = min(_rim_radius(tgt_kind, rho), RIM_R)
@@ -877,8 +877,8 @@ def _rim_polar(tgt_kind, row, col, h, w):  # pragma: no cover - compiled
 def _rim_subsamples(tgt_kind, tgt_axes, row, col, h, w, rotation, src_kind, src_axes, src_h, src_w, pfs, pxs, pys,
                     pws):  # pragma: no cover - compiled
     """A disc's pixel by its rim (a mirror ball's or an angular map's: ``tgt_kind``) as subsamples in (ρ, α) — ρ
-    from the rim direction, α round the image centre — or (0, 0.0) where its ρ spans less than
-    :data:`RIM_POLAR_SPAN`× its least ρ (the plain cells serve). Rows at the middles of even steps of ρ; each row
+    from the rim direction, α round the image centre — or (0, 0.0) where :func:`_rim_sampled` leaves it to the
+    plain cells. Rows at the middles of even steps of ρ; each row
     weighs the pixel's exact share of its ring's image area times the ring's solid angle per area
     (:func:`_ring_density`), spread evenly over the row's arc inside the pixel, cut exactly at the pixel's edges;
     rows and subsamples :data:`RIM_SPACING` source pixels apart, thinned to fit the scratch (``pfs``) held."""
@@ -892,11 +892,11 @@ def _rim_subsamples(tgt_kind, tgt_axes, row, col, h, w, rotation, src_kind, src_
         d = _wrapped_angle(math.atan2(b0 if i < 2 else b1, a0 if i % 2 == 0 else a1) - centre)
         lo, hi = min(lo, d), max(hi, d)
     span = rho_hi - rho_lo
-    u0, v0 = _ball_point(tgt_kind, rho_lo + 0.25 * span, centre)  # the source pixels the footprint spans, radially
-    u1, v1 = _ball_point(tgt_kind, rho_lo + 0.75 * span, centre)
+    u0, v0 = _rim_point(tgt_kind, rho_lo + 0.25 * span, centre)  # the source pixels the footprint spans, radially
+    u1, v1 = _rim_point(tgt_kind, rho_lo + 0.75 * span, centre)
     radial = 2.0 * _source_step(tgt_kind, tgt_axes, 0, u0, v0, u1, v1, rotation, src_kind, src_axes, src_h, src_w)
-    u0, v0 = _ball_point(tgt_kind, rho_hi, centre + 0.25 * (hi - lo) + lo)  # and round its widest arc
-    u1, v1 = _ball_point(tgt_kind, rho_hi, centre + 0.75 * (hi - lo) + lo)
+    u0, v0 = _rim_point(tgt_kind, rho_hi, centre + 0.25 * (hi - lo) + lo)  # and round its widest arc
+    u1, v1 = _rim_point(tgt_kind, rho_hi, centre + 0.75 * (hi - lo) + lo)
     round_ = 2.0 * _source_step(tgt_kind, tgt_axes, 0, u0, v0, u1, v1, rotation, src_kind, src_axes, src_h, src_w)
     budget = pfs.shape[0] - 1  # a row's arc may fall in pieces, each rounded up: a subsample more each
     rows_budget = 3 * budget // 4  # the rest for split bands
@@ -917,12 +917,13 @@ def _rim_subsamples(tgt_kind, tgt_axes, row, col, h, w, rotation, src_kind, src_
         inner = _disc_in_square(r_in, a0, a1, b0, b1)
         band = outer - inner  # the pixel's share of the ring between this row's edges, exactly
         rho = rho_lo + (i + 0.5) * d_rho
-        m = _arc_cuts(_rim_radius(tgt_kind, rho), a0, a1, b0, b1, centre, lo, hi, cuts)
-        inside = _arc_inside(_rim_radius(tgt_kind, rho), a0, a1, b0, b1, centre, cuts, m)
+        r_mid = _rim_radius(tgt_kind, rho)
+        m = _arc_cuts(r_mid, a0, a1, b0, b1, centre, lo, hi, cuts)
+        inside = _arc_inside(r_mid, a0, a1, b0, b1, centre, cuts, m)
         # Where the pixel's edge runs along the rings (by the disc's top, bottom and sides) the band is only partly
         # in the pixel and its middle arc stands for it badly (a one-pixel sun there 2 % off): split in RIM_SPLIT.
         split = 1
-        if abs(inside * _rim_radius(tgt_kind, rho) * (r_out - r_in) - band) > 0.01 * band \
+        if abs(inside * r_mid * (r_out - r_in) - band) > 0.01 * band \
                 and n + (RIM_SPLIT + rows - i) * (per_row + 1) <= budget:
             split = RIM_SPLIT
         sub_out = outer
@@ -933,8 +934,9 @@ def _rim_subsamples(tgt_kind, tgt_axes, row, col, h, w, rotation, src_kind, src_
             count = per_row
             if split > 1:  # this sub-row's own arc
                 count = max(1, int(math.ceil(per_row * (sub_out - sub_in) / band)))
-                m = _arc_cuts(_rim_radius(tgt_kind, sub_rho), a0, a1, b0, b1, centre, lo, hi, cuts)
-                inside = _arc_inside(_rim_radius(tgt_kind, sub_rho), a0, a1, b0, b1, centre, cuts, m)
+                sub_mid = _rim_radius(tgt_kind, sub_rho)
+                m = _arc_cuts(sub_mid, a0, a1, b0, b1, centre, lo, hi, cuts)
+                inside = _arc_inside(sub_mid, a0, a1, b0, b1, centre, cuts, m)
             density = _ring_density(tgt_kind, rho_lo + (i + j / split) * d_rho,
                                     rho_lo + (i + (j + 1.0) / split) * d_rho)
             n, wsum = _arc_samples(tgt_kind, sub_rho, (sub_out - sub_in) * density, count, a0, a1, b0, b1, centre,
@@ -952,19 +954,19 @@ def _rim_subsamples(tgt_kind, tgt_axes, row, col, h, w, rotation, src_kind, src_
         m = _arc_cuts(RIM_R, a0, a1, b0, b1, centre, lo, hi, cuts)
         weight = -d_rho * d_rho * _arc_inside(RIM_R, a0, a1, b0, b1, centre, cuts, m) / 96.0
         if weight < 0.0:
-            _ball_sample(tgt_kind, 0.0, centre, weight, tgt_axes, rotation, src_kind, src_axes, src_h, src_w, pfs,
-                         pxs, pys, pws, n)
+            _store_rim_subsample(tgt_kind, 0.0, centre, weight, tgt_axes, rotation, src_kind, src_axes, src_h,
+                                 src_w, pfs, pxs, pys, pws, n)
             wsum += weight
             n += 1
     return n, wsum
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _ball_sample(tgt_kind, rho, alpha, weight, tgt_axes, rotation, src_kind, src_axes, src_h, src_w, pfs, pxs, pys,
-                 pws, n):  # pragma: no cover - compiled
-    """Store subsample ``n``: the disc's point (``rho``, ``alpha``) (:func:`_ball_point`) as a source position,
+def _store_rim_subsample(tgt_kind, rho, alpha, weight, tgt_axes, rotation, src_kind, src_axes, src_h, src_w, pfs,
+                         pxs, pys, pws, n):  # pragma: no cover - compiled
+    """Store subsample ``n``: the disc's point (``rho``, ``alpha``) (:func:`_rim_point`) as a source position,
     with ``weight``."""
-    u, v = _ball_point(tgt_kind, rho, alpha)
+    u, v = _rim_point(tgt_kind, rho, alpha)
     x, y, z, _ = target_direction(tgt_kind, tgt_axes, 0, u, v)
     rx, ry, rz = _turned(x, y, z, rotation)
     pfs[n], pxs[n], pys[n] = source_position(src_kind, src_axes, rx, ry, rz, src_h, src_w)
@@ -1003,8 +1005,8 @@ def _arc_samples(tgt_kind, rho, area, per_row, a0, a1, b0, b1, centre, cuts, m, 
             break
         weight = area * length / (inside * count)
         for q in range(count):
-            _ball_sample(tgt_kind, rho, centre + cuts[j] + (q + 0.5) * length / count, weight, tgt_axes, rotation,
-                         src_kind, src_axes, src_h, src_w, pfs, pxs, pys, pws, n)
+            _store_rim_subsample(tgt_kind, rho, centre + cuts[j] + (q + 0.5) * length / count, weight, tgt_axes,
+                                 rotation, src_kind, src_axes, src_h, src_w, pfs, pxs, pys, pws, n)
             wsum += weight
             n += 1
     return n, wsum

@@ -178,7 +178,7 @@ def link_kernels(source: Layout, source_pixels: int, target: Layout, size: int, 
     while _corrected(source, source.grid_shape(rows), target, None) != corrected and rows < 1024:
         rows *= 2
     small = EnvMap(np.zeros(source.grid_shape(rows) + (3,), np.float32), source)
-    small_size = rows // 2  # ~10 source pixels a target pixel: read as it is, not box-reduced
+    small_size = rows // 2  # 4–10 source pixels a target pixel: read as it is, not box-reduced
     if streamed:
         for _ in resample_strips(small, target, small_size, rotation=rotation)[1]:
             pass
@@ -490,9 +490,9 @@ class Resampler:
         self.size = size or target.default_size(pixels)
         check_size(target, self.size)
         out_grid = target.grid_shape(self.size)
-        ratio = pixels / max(_valid_pixels(target, out_grid), 1)  # as resample's _reduced_grid measures it
         self.offsets, self._flux = None, None
-        reduced_first = samples is None and ratio > MAX_FOOTPRINT_RATIO and _reducible(source_layout, source_grid)
+        reduced_first = (samples is None
+                         and _reduced_grid(source_layout, tuple(source_grid), target, out_grid)[1] != tuple(source_grid))
         if reduced_first or fused.CODES.get(source_layout.name) is None \
                 or fused.CODES.get(_face_layout(target).name) is None:
             return  # not cached: __call__ resamples directly
