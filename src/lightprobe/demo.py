@@ -300,6 +300,8 @@ def _gain_pictures(rep: Report) -> str:
     surplus = balance.face_texel_integrals(64) / pixel_solid_angles(cube, cube.grid_shape(64))[0] - 1
     big_to_ball = _pair_gains("latlong", 256, "sphere", 128, None)  # not flux-corrected; the table's row too
     back = big_to_ball[128 - 43:128 + 43, 256 - 43:256 + 43]  # ±30° round the ball's rim direction (−Z)
+    big_to_angular = _pair_gains("latlong", 256, "angular", 128, None)  # the same for an angular map's (+Z: the seam)
+    front = np.roll(big_to_angular, 256, axis=1)[128 - 43:128 + 43, 256 - 43:256 + 43]
     scale = "black 0, white 1 % or more; grey: no sphere, or within 25° of a rim direction"
     return (rep.display_picture("energy_ball_one_rate", heatmap(np.abs(one_rate), 0.01),
                                 f"mirror ball 128 → angular 64, one rate k = {k}: |gain| of a sun in each pixel "
@@ -324,6 +326,11 @@ def _gain_pictures(rep: Report) -> str:
                                   "with no margin, the lat-long's ±30° round the ball's rim direction: its rim pixels "
                                   "are sampled round that direction; with even cells in the image this was a moiré "
                                   "up to 33 % (black 0, white 0.2 %, the bar, or more)", width=256)
+            + rep.display_picture("energy_latlong_angular_rim", heatmap(np.abs(front), 0.002),
+                                  "lat-long 256 → angular 128, the same way round the angular map's rim direction: "
+                                  "its pixels that the rim crosses are sampled round it; with even cells the four "
+                                  "source pixels at the centre were 0.46 % over (black 0, white 0.2 % or more)",
+                                  width=256)
             + rep.display_picture("energy_cube_surplus", heatmap(np.abs(surplus), 0.008),
                                   "what the balance removes: one face of a 64-texel cube, each texel's B-spline "
                                   "integral against its solid angle, whatever the target (black 0, white 0.8 %): "
