@@ -19,10 +19,10 @@ The flow is built top-down on a quadtree of each face (:func:`_face_flows`): at 
 four children that leave each child's total demand at zero, spread along their shared boundary in proportion to each
 pair's capacity min(D_p, D_q); a block's children are then blocks of the next level, down to single pixels. Every
 edge belongs to one level, the work is a few passes over the pixels, and the result is exact to float rounding. A
-cube's faces first exchange their totals over their seams (a 6-node Laplacian); pixels within
-:data:`GROUND_MARGIN` of an angular source's rim direction (one direction spread over rings of pixels) are the ground:
-they take up what the others need, and are not corrected themselves — and those of them the conversion barely reads
-(:data:`DEAD_DELIVERY`) carry no flow, which would weigh their few reads far over 1. Weights stay small: 0.5–4 % at
+cube's faces first exchange their totals over their seams (a 6-node Laplacian). Every pixel is corrected, a disc
+source's to its rim direction (one direction spread over rings of pixels, which the conversion reads round that
+direction: :data:`lightprobe.envmap.fused.SOURCE_RIM_MARK`; an angular source's pixels within 20° of it were once left
+alone, up to 3000 % off, as read they were too uneven for the flow). Weights stay small: 0.5–4 % at
 the worst pixel at the sizes maps are converted at (benchmarks/bench_energy.py --part flux), up to 30 % for 20-pixel
 mirror balls; over 50 % only for a few dozen pixels by a rim direction (up to 95 % in a mirror ball's outer
 rings); a pixel's total is capped at :data:`MAX_WEIGHT`, so the blend stays convex whatever the input."""
@@ -36,14 +36,11 @@ import numpy as np
 
 from ..layouts import CUBE, Layout, _padding_index
 
-GROUND_MARGIN = 20.0  # degrees from an angular source's rim direction: pixels within it are not corrected (inside
-#                       the energy measure's 25°: benchmarks/bench_energy.py, Resampler.energy_gains(rim_margin)).
-#                       A mirror ball and a disc target have no ground (resampling._ground says why)
-DEAD_DELIVERY = 0.25  # a ground pixel the conversion delivers less than this share of its solid angle takes no flow
 MAX_WEIGHT = 0.95  # a pixel's weights are scaled down to this total where a flow through it would exceed it. Only
-#                   pixels by a rim direction need over 0.5 (0–36 of them, within 18° of it): the source pixels a
-#                   disc target's rim reads up to 0.6 (lat-long 128 → mirror ball 64; 13 % off at 0.5), a mirror
-#                   ball's outer rings up to 0.95 (512 → cube 64, 256 → angular 64: 9 % and 15 % off at 0.75)
+#                   pixels by a rim direction need over 0.5 (a few dozen, within 18° of it): the source pixels a
+#                   disc target's rim reads up to 0.6 (lat-long 128 → mirror ball 64; 13 % off at 0.5), a disc
+#                   source's ring round its rim direction up to 0.82 (mirror ball 1024 → cube 128; 0.69 angular
+#                   1024 → cube 256). A mirror ball's rings needed 0.95 before they were read round that direction
 
 
 @dataclass(frozen=True)
@@ -123,24 +120,14 @@ class Stencil:
         return total
 
 
-def stencil_for(layout: Layout, delivery: np.ndarray, omega: np.ndarray, ground: np.ndarray | None = None) -> Stencil:
+def stencil_for(layout: Layout, delivery: np.ndarray, omega: np.ndarray) -> Stencil:
     """The pre-filter that makes every pixel's delivery its solid angle, for a source of ``layout`` whose pixels'
     deliveries are ``delivery`` and solid angles ``omega`` (both (F, H, W) float64, the grid the conversion reads;
-    0 where a pixel covers no sphere). ``ground`` (bool, same shape): pixels left uncorrected, which take up the
-    others' demand in proportion to their delivery (see :data:`GROUND_MARGIN`). The total delivery must equal the
-    total solid angle (so it does for any conversion that keeps a uniform map uniform)."""
+    0 where a pixel covers no sphere). The total delivery must equal the total solid angle (so it does for any
+    conversion that keeps a uniform map uniform)."""
     delivery = np.where(omega > 0, delivery, 0.0)
-    left_alone = np.zeros(omega.shape, dtype=bool) if ground is None else ground
-    if ground is not None and ground.any():
-        # by the rim a conversion may barely read a pixel: a flow through it would weigh its few reads far over 1
-        delivery = np.where(ground & (delivery < DEAD_DELIVERY * omega), 0.0, delivery)
     demand = np.where(delivery > 0, omega - delivery, 0.0)  # the inflow each pixel needs
-    if ground is not None and ground.any():
-        ground = ground & (delivery > 0)
-        free = demand[~ground].sum()
-        demand = np.where(ground, -free * delivery / delivery[ground].sum(), demand)
-    else:
-        demand = demand - demand.sum() * delivery / delivery.sum()  # float rounding of the totals, spread
+    demand = demand - demand.sum() * delivery / delivery.sum()  # float rounding of the totals, spread
     faces, h, w = delivery.shape
     flow_h, flow_v = np.zeros((faces, h, w - 1)), np.zeros((faces, h - 1, w))
     seams = _no_seams()
@@ -151,7 +138,7 @@ def stencil_for(layout: Layout, delivery: np.ndarray, omega: np.ndarray, ground:
     stencil = _convex(_stencil(delivery, flow_h, flow_v, seams))
     del flow_h, flow_v
     effective = stencil.delivered(delivery)
-    corrected = (omega > 0) & ~left_alone
+    corrected = omega > 0
     error = np.abs(effective - omega)[corrected] / omega[corrected]
     return Stencil(stencil.right, stencil.left, stencil.down, stencil.up, stencil.seams,
                    float(error.max(initial=0.0)))

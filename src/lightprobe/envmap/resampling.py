@@ -66,11 +66,11 @@ def box_reduce(env: EnvMap) -> EnvMap:
 
 
 # A mirror ball squeezes its back hemisphere into its outer rings: θ from its rim direction, a ring is 2 / sin(θ/2)
-# times wider in angle than in the image — 10° a pixel at 20° from the rim for a ball of 128 pixels, 20° at 64. The
-# flux correction leaves the pixels within flux.GROUND_MARGIN (20°) of the rim alone, and a ball halved to 64 for a
-# 16-pixel target left suns in pixels just outside the 25° rim margin 19–24 % off: their 64-pixel blocks straddle
-# it. A smaller ball is not halved; a tiny target reads its 128 pixels with more subsamples instead. (Since the
-# ball's ring is corrected too (_ground), a ball halved to 64 keeps every sun as well: tests/test_resample.py.)
+# times wider in angle than in the image — 10° a pixel at 20° from the rim for a ball of 128 pixels, 20° at 64. When
+# the flux correction left the pixels within 20° of the rim alone, a ball halved to 64 for a 16-pixel target left suns
+# in pixels just outside the 25° rim margin 19–24 % off: their 64-pixel blocks straddled it. A smaller ball is not
+# halved; a tiny target reads its 128 pixels with more subsamples instead. (Since the ball's ring is corrected too, a
+# ball halved to 64 keeps every sun as well: tests/test_resample.py.)
 SPHERE_MIN_SIDE = 128
 
 
@@ -506,6 +506,29 @@ class Resampler:
             return self._separable.nbytes
         return 0 if self.offsets is None else self.offsets.nbytes + self.idx.nbytes + self.wts.nbytes
 
+    def _splice(self, apart: np.ndarray, taps: _Taps, counts: np.ndarray) -> None:
+        """Put the merged taps of the pixels :func:`lightprobe.envmap.fused.footprint_taps` listed apart (sampled
+        round a disc source's rim direction, :func:`lightprobe.envmap.fused.source_rim_taps`) into the CSR arrays."""
+        merged = np.zeros(taps.source_pixels)
+        touched = np.empty(taps.source_pixels, np.int32)
+        listed = []
+        for p in apart:
+            n = fused.source_rim_taps(*taps.kernel_args, int(p) // taps.width, int(p) % taps.width, merged, touched)
+            index = touched[:n].copy()
+            listed.append((index, merged[index].astype(np.float32)))
+            merged[index] = 0.0
+        old_offsets = self.offsets
+        counts[apart] = [len(index) for index, _ in listed]
+        self.offsets = np.zeros(len(counts) + 1, np.int64)
+        np.cumsum(counts, out=self.offsets[1:])
+        idx = np.empty(self.offsets[-1], np.int32)
+        wts = np.empty(self.offsets[-1], np.float32)
+        moved = np.arange(len(self.idx)) + np.repeat(self.offsets[:-1] - old_offsets[:-1], np.diff(old_offsets))
+        idx[moved], wts[moved] = self.idx, self.wts
+        for p, (index, weights) in zip(apart, listed):
+            idx[self.offsets[p]:self.offsets[p + 1]], wts[self.offsets[p]:self.offsets[p + 1]] = index, weights
+        self.idx, self.wts = idx, wts
+
     def _build(self, source_layout: Layout, source_grid, out_grid, k: int, k_max: int, steps: polar.Steps) -> None:
         filled = _face_layout(self.target)
         corrected = _corrected(source_layout, source_grid, filled, self.samples)
@@ -513,7 +536,8 @@ class Resampler:
             self._separable = separable.Separable(tuple(source_grid), tuple(out_grid[-2:]), k, self.rotation)
             return
         taps = _Taps(source_layout, tuple(source_grid), self.target, self.size, k, k_max, steps, self.rotation)
-        check_memory(taps.lines * taps.width * (25 * 8 + 8) + taps.scratch_bytes,
+        merging = 12 * taps.source_pixels if source_layout.name in DISCS else 0  # _splice's scratch
+        check_memory(taps.lines * taps.width * (25 * 8 + 8) + taps.scratch_bytes + merging,
                      f"footprint weights of {self.layout.name} → {self.target.name} size {self.size}", kernels=True)
         self._levels = taps.found_levels
 
@@ -526,10 +550,14 @@ class Resampler:
             parts = list(track(pool.map(listed, taps.firsts), f"footprint weights for {self.target.name}",
                                total=len(taps.firsts)))
         counts = np.concatenate([c for c, _, _ in parts])
+        apart = np.flatnonzero(counts < 0)  # pixels round a disc source's rim direction: listed apart, merged
+        counts[apart] = 0
         self.offsets = np.zeros(len(counts) + 1, np.int64)
         np.cumsum(counts, out=self.offsets[1:])
         self.idx = np.concatenate([i for _, i, _ in parts])
         self.wts = np.concatenate([q for _, _, q in parts])
+        if apart.size:
+            self._splice(apart, taps, counts)
         self._filled_grid, self._lines = taps.grid, (taps.lines, taps.width)
         self._flux = _flux_stencil(source_layout, tuple(source_grid), self.target, taps.grid, self.rotation,
                                    self.samples, (k, k_max), lambda omega_t: _taps_delivery(self, source_layout,
@@ -623,6 +651,7 @@ class _Taps:
         src_kind = fused.CODES[source_layout.name]
         self.found_levels = None  # a latlong source's polar reduction levels, when it has any
         self.reduced_size = 0  # their reduced pixels (taps past the source's own)
+        self.source_pixels = math.prod(source_grid)
         levels, _, row_offsets, caps = polar.no_reduction(source_grid[-2])
         if src_kind == fused.LATLONG:
             src_shape, valid = (1,) + tuple(source_grid) + (3,), np.ones((1, 1, 1), np.float32)
@@ -678,23 +707,6 @@ def delivered(taps: _Taps, source_grid: tuple[int, ...], omega_t: np.ndarray) ->
     return _unreduced(np.sum(totals, axis=0), source_grid, taps.found_levels)
 
 
-def _ground(source_layout: Layout, source_grid: tuple[int, ...]) -> np.ndarray | None:
-    """The source pixels the flux correction leaves alone (bool, the source's grid), or None: those within
-    :data:`lightprobe.envmap.flux.GROUND_MARGIN` of an angular source's rim direction, one direction spread over
-    rings of pixels that a conversion reads too sparsely to correct (a target pixel ε from it reads an arc ~1/ε
-    long: pixels there went unread or read for several). Not a mirror ball's: equal-area, its rim pixels counted
-    by their share (:func:`lightprobe.layouts._disc_certainty`), its ring is read near its solid angle and the
-    flows reach it — within 0.08 % to the rim in 39 of 40 pairs (mirror ball 128–1024 → every layout of 16–256;
-    not 1024 → angular 256), where as ground it was 78–410 % off within 25°, and a 1024 ball box-reduced for a
-    16-pixel target 5.7–17 % off just outside 25° (the reduced ground's blocks reach past it). Not a disc target's
-    either: the source pixels its rim reads are corrected like any other (10–55 % off from cube and lat-long sources
-    into a mirror ball while they were ground; exact now, with weights up to 0.6)."""
-    rim = source_layout.rim_direction()
-    if rim is None or source_layout.name == "sphere":
-        return None
-    return pixel_directions(source_layout, source_grid) @ rim > math.cos(math.radians(flux.GROUND_MARGIN))
-
-
 _FLUX_CACHE: dict = {}
 _FLUX_LOCK = threading.Lock()
 _FLUX_CACHE_BYTES = 256 << 20  # the corrections a process keeps (a batch converts one pair of grids many times)
@@ -746,10 +758,8 @@ def _flux_stencil(source_layout: Layout, source_grid: tuple[int, ...], target: L
     omega_t = pixel_solid_angles(target, tuple(filled_grid)).reshape(-1)
     per_pixel = _raw_pixel_delivery(delivery_of(omega_t), source_layout, source_grid)
     omega_s = pixel_solid_angles(source_layout, source_grid)
-    ground = _ground(source_layout, source_grid)
     face_shape = (-1,) + tuple(source_grid[-2:])
-    stencil = flux.stencil_for(source_layout, per_pixel.reshape(face_shape), omega_s.reshape(face_shape),
-                               None if ground is None else ground.reshape(face_shape))
+    stencil = flux.stencil_for(source_layout, per_pixel.reshape(face_shape), omega_s.reshape(face_shape))
     with _FLUX_LOCK:  # threads converting at once (a Dask worker's) share the cache
         while _FLUX_CACHE and sum(kept.nbytes for kept in _FLUX_CACHE.values()) + stencil.nbytes > _FLUX_CACHE_BYTES:
             _FLUX_CACHE.pop(next(iter(_FLUX_CACHE)))  # the oldest first
