@@ -185,7 +185,8 @@ def section_speed(rep: Report) -> str:
             + "<p>Every source pixel as the sun, exactly: the conversion is linear, so the energy a sun in pixel "
               "s comes out with is its column of the weights times the target's solid angles "
               "(<code>Resampler.energy_gains</code>). Pixels within 25° of a disc's rim direction left out, but "
-              "for the rows with no margin: a disc target's rim is corrected like the rest.</p>"
+              "for the rows with no margin: a disc's rim direction is corrected like the rest, as target and as "
+              "source.</p>"
             + table(["conversion", "worst", "pixels over 0.2 %"],
                     [[label, f"{100 * worst:.3f} %", f"{100 * share:.1f} %"]
                      for label, (worst, share) in _every_pixel_gains().items()])
@@ -270,7 +271,12 @@ def _every_pixel_gains() -> dict[str, tuple[float, float]]:
              ("lat-long 256 → mirror ball 128, no margin (not flux-corrected; 33 % by the rim direction before its "
               "rim pixels were sampled round it)", "latlong", 256, "sphere", 128, None),
              ("lat-long 256 → angular 128, no margin (not flux-corrected; 0.46 % by the rim direction before its "
-              "rim pixels were sampled round it)", "latlong", 256, "angular", 128, None))
+              "rim pixels were sampled round it)", "latlong", 256, "angular", 128, None),
+             ("angular 256 → lat-long 128, no margin (was 555 % within 2° of the angular map's rim direction, left "
+              "uncorrected within 20° until the pixels there were read round it)", "angular", 256, "latlong", 128,
+              None),
+             ("mirror ball 512 → angular 128, no margin (its ring read round its rim direction)", "sphere", 512,
+              "angular", 128, None))
     out = {}
     for label, source, size, target, out_size, *margin in cases:  # the margin: 25° unless a row gives its own
         gains = _pair_gains(source, size, target, out_size, margin[0] if margin else 25.0)
