@@ -78,9 +78,10 @@ def test_every_pixel_keeps_its_energy_with_the_correction_and_not_without(source
     for rim in (src.rim_direction(), layout(target).rim_direction()):
         if rim is not None:
             rim_far &= pixel_directions(src, grid) @ rim < np.cos(np.radians(25))
-    # a small blend: a sun stays where it was. Up to 0.12 25–30° from a mirror ball's rim direction (128 → cube 32;
-    # 0.035 while its ring was left alone): the flows now reach into the ring and correct it too
-    assert totals[rim_far].max() < 0.15
+    # a small blend: a sun stays where it was. Up to 0.17 25–30° from a mirror ball's rim direction (128 → cube 32;
+    # 0.035 while its ring was left alone, 0.12 before the pixels by its rim direction were all read round it): the
+    # flows now reach into the ring and correct it too
+    assert totals[rim_far].max() < 0.2
     assert totals.max() <= flux.MAX_WEIGHT + 1e-6
     monkeypatch.setattr(resample_module, "_flux_stencil", lambda *args, **kwargs: None)
     assert _gains(source, size, target, out_size).max() > 2e-3

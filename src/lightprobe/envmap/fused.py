@@ -687,13 +687,20 @@ def _rate_rows(tgt_kind, tgt_axes, face, row, h, w, k, k_max, rotation, src_kind
         return
     for r in range(max(row - 1 if fresh else row + 1, 0), min(row + 2, h)):
         for col in range(w):
-            if _rim_polar(tgt_kind, r, col, h, w):
-                rates[r % 3, 0, col], rates[r % 3, 1, col] = RIM_MARK, RIM_MARK
-                continue
-            ku, kv, short = _rates(tgt_kind, tgt_axes, face, r, col, h, w, k, k_max, rotation, src_kind, src_axes,
-                                   src_h, src_w)
-            if short and _source_rim_near(tgt_kind, tgt_axes, face, r, col, h, w, rotation, src_kind, src_axes):
+            # A disc source's rim direction first, a disc target's rim next (its rows serve its own rim direction,
+            # not the ring a disc source spreads another over), then the cells' own rates
+            polar = _rim_polar(tgt_kind, r, col, h, w)
+            disc_source = src_kind == ANGULAR or src_kind == SPHERE
+            ku, kv, short = RIM_MARK, RIM_MARK, False
+            if disc_source or not polar:
+                ku, kv, short = _rates(tgt_kind, tgt_axes, face, r, col, h, w, k, k_max, rotation, src_kind,
+                                       src_axes, src_h, src_w)
+            if disc_source and (_by_source_rim(tgt_kind, tgt_axes, face, r, col, h, w, rotation, src_kind, src_axes)
+                                or _source_rim_wanted(tgt_kind, tgt_axes, face, r, col, h, w, rotation, src_kind,
+                                                      src_axes, short)):
                 ku, kv = SOURCE_RIM_MARK, SOURCE_RIM_MARK
+            elif polar:
+                ku, kv = RIM_MARK, RIM_MARK
             rates[r % 3, 0, col], rates[r % 3, 1, col] = ku, kv
 
 
@@ -1080,6 +1087,9 @@ SOURCE_RIM_MARK = -2  # in the rates buffer: a pixel sampled round a disc source
 SOURCE_RIM_SHORT = 4  # × k_max: the lookups a side a pixel's footprint would need before it is so sampled (at 1×,
 #                       pixels 10–25° away, well served by their cells, came out 4–8 % off uncorrected, not 0.2–1.3 %)
 SOURCE_RIM_REACH = 0.6  # rad (34°) from the source's rim direction: pixels further away keep their cells
+SOURCE_RIM_CLOSE = 2.0  # pixel sides from the rim direction within which a pixel is so sampled whatever its cells
+#                         (angular 96 → mirror ball 24 turned: the pixels whose corner touched it kept 16 a side, and
+#                         a sun at the rim direction came out 279 % off before the correction, 76 % after)
 SOURCE_RIM_EDGE_POINTS = 16  # points along each edge of a target pixel where its span in (ρ, α) is measured
 SOURCE_RIM_MARGIN = 0.05  # of that span, added each way (an edge bulges between the points)
 SOURCE_RIM_MAX_SAMPLES = 1 << 22  # lookups a pixel, at most: spaced wider past it
@@ -1127,14 +1137,52 @@ def _target_pixel(tgt_kind, tgt_axes, rotation, sx, sy, sz, h, w):  # pragma: no
 
 
 @njit(cache=True, error_model="numpy")
-def _source_rim_near(tgt_kind, tgt_axes, face, row, col, h, w, rotation, src_kind, src_axes):  # pragma: no cover
-    """Whether target pixel (face, row, col)'s centre lies within :data:`SOURCE_RIM_REACH` of a disc source's rim
-    direction."""
+def _by_source_rim(tgt_kind, tgt_axes, face, row, col, h, w, rotation, src_kind, src_axes):  # pragma: no cover
+    """Whether target pixel (face, row, col) is the one that shows a disc source's rim direction or one of its eight
+    neighbours on its face: sampled round that direction before anything else, a disc target's own rim rows
+    included (angular 96 → mirror ball 32 turned so the source's rim direction fell in the ball's rim pixels, 25°
+    from its own: read by the ball's rim rows, a sun there came out 177 % off after the correction)."""
+    if src_kind != ANGULAR and src_kind != SPHERE:
+        return False
+    dx, dy, dz, _, _, _, _, _, _ = _source_rim_frame(src_kind, src_axes)
+    f, r, c = _target_pixel(tgt_kind, tgt_axes, rotation, dx, dy, dz, h, w)
+    across = abs(c - col)
+    if tgt_kind == LATLONG:
+        across = min(across, w - across)
+    return f == face and abs(r - row) <= 1 and across <= 1
+
+
+@njit(cache=True, error_model="numpy")
+def _source_rim_wanted(tgt_kind, tgt_axes, face, row, col, h, w, rotation, src_kind, src_axes,
+                       short):  # pragma: no cover - compiled
+    """Whether target pixel (face, row, col) is sampled round a disc source's rim direction: its centre lies within
+    :data:`SOURCE_RIM_REACH` of it, and its cells fall ``short`` or its nearest point (of its corners, edge
+    middles and centre) lies within :data:`SOURCE_RIM_CLOSE` × its size (√ of its solid angle) from it: its cells'
+    spacing, measured over its middle half, misses the ring a corner of it touches, and a mirror ball target's rim
+    pixels are long strips — one reaching the source's rim direction read its ring 130 % over. (Measured against
+    the strips' length instead, every ball rim pixel within reach was so sampled, and its fan round the ball's own
+    rim direction was read short: 54 % under 25° from the source's.)"""
     if src_kind != ANGULAR and src_kind != SPHERE:
         return False
     sx, sy, sz = _source_dir(tgt_kind, tgt_axes, face, (col + 0.5) / w, (row + 0.5) / h, rotation)
     rho, _ = _source_rim_polar(src_kind, src_axes, sx, sy, sz)
-    return rho < SOURCE_RIM_REACH
+    if rho >= SOURCE_RIM_REACH:
+        return False
+    if short:
+        return True
+    _, _, _, density = target_direction(tgt_kind, tgt_axes, face, (col + 0.5) / w, (row + 0.5) / h)
+    nearest = rho
+    for q in range(8):
+        u = 0.0 if q % 3 == 0 else 0.5 if q % 3 == 1 else 1.0
+        v = 0.0 if q < 3 else 0.5 if q < 5 else 1.0
+        if q == 3 or q == 4:  # the middles of the left and right edges
+            u = 0.0 if q == 3 else 1.0
+        px, py, pz = _source_dir(tgt_kind, tgt_axes, face, (col + u) / w, (row + v) / h, rotation)
+        there, _ = _source_rim_polar(src_kind, src_axes, px, py, pz)
+        nearest = min(nearest, there)
+        _, _, _, here = target_direction(tgt_kind, tgt_axes, face, (col + u) / w, (row + v) / h)
+        density = max(density, here)  # a disc's rim pixel may have its centre off the disc
+    return nearest < SOURCE_RIM_CLOSE * math.sqrt(density / (w * h))
 
 
 @njit(cache=True, error_model="numpy", fastmath=False)  # every kernel lays the rows out alike
@@ -1456,9 +1504,11 @@ def footprint_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, c
         for col in range(w):
             p = (line - first) * w + col
             counts[p] = 0
+            if not all_valid and tgt_valid[face, row, col] == 0:
+                continue  # off a disc target (its rim direction's pixels may be marked: they stay 0, as resample_into)
             if _source_rim_marked(rates, row, col, k, k_max):
                 counts[p] = -1  # listed apart, their taps merged (source_rim_taps): they outnumber a row
-            elif all_valid or tgt_valid[face, row, col] != 0:
+            else:
                 counts[p] = _pixel_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, caps, src_axes,
                                         src_h, src_w, tgt_kind, tgt_axes, h, w, k, k_max, rotation, face, row, col,
                                         rates, pfs, pxs, pys, pws, tile, scratch, wx, wy, idx[p], wts[p])
