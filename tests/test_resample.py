@@ -657,6 +657,31 @@ def test_lookups_nearer_the_pole_than_their_pixel_spread_over_more_columns():
     assert steps.rows_aligned and not polar.polar_levels(steps, source.grid, k).any()
 
 
+@pytest.mark.parametrize("target, rows, size", [("cube", 2048, 512), ("cube", 2048, 1024), ("cube", 1024, 512),
+                                                ("sphere", 2048, 2048), ("angular", 2048, 1024), ("sphere", 64, 16)])
+def test_polar_levels_never_fall_towards_a_pole(target, rows, size):
+    """The pairs whose measured levels dipped towards a pole (a row the sampled footprints missed): each row's
+    level is at least that of every row between it and the equator."""
+    from lightprobe.envmap import polar
+    from lightprobe.envmap.resampling import supersampling
+
+    grid = (rows, 2 * rows)
+    k, steps = supersampling(LATLONG, grid, layout(target), layout(target).grid_shape(size), None, None)
+    levels = polar.polar_levels(steps, grid, k)
+    assert levels.any()
+    north, south = levels[:rows // 2], levels[rows // 2:]
+    assert (np.diff(north) <= 0).all() and (np.diff(south) >= 0).all(), np.flatnonzero(np.diff(north) > 0)
+
+
+def test_a_sun_in_a_polar_row_the_sampled_footprints_missed_keeps_its_energy():
+    """4096×2048 → cube 512: rows 118–120 of the north cap came out unreduced among rows of level 3 (none of the
+    sampled target pixels reached them), and a sun there took +53.6 % of its energy into the cube."""
+    data = np.zeros((2048, 4096, 3), np.float32)
+    data[118, 4092] = 1.0
+    src = EnvMap(data, LATLONG)
+    np.testing.assert_allclose(src.to("cube", 512).integral(), src.integral(), rtol=2e-3)
+
+
 @pytest.mark.parametrize("theta", [2, 4, 8, 20, 40])
 def test_a_sun_near_the_pole_stays_where_it_was(theta):
     """A reduced row moves a sun by at most half a reduced pixel in azimuth — under one target pixel: the energy

@@ -154,7 +154,22 @@ def polar_levels(steps: Steps, source_grid: tuple[int, int], k: int) -> np.ndarr
     levels = np.clip(need, 0, max_level(w) + 1).astype(np.int64)
     cos = np.cos((np.arange(h) + 0.5) / h * math.pi)
     levels[np.abs(cos) < CAP_COS] = 0
-    return levels
+    return _rising_to_the_poles(levels)
+
+
+def _rising_to_the_poles(levels: np.ndarray) -> np.ndarray:
+    """``levels`` raised so that none falls towards a pole: each row at least the level of every row between it and
+    the equator. A row's pixels narrow towards the pole, so a row nearer it never needs less; but the spacing is
+    measured on a sample of target pixels, and a row their footprints happened not to reach came out lower than
+    its neighbours — unreduced (ℓ = 0) among rows of ℓ = 3 for a 4096×2048 map into a cube of 512, whose sun in
+    such a row came out +54 % (``Resampler.energy_gains``), a single ℓ = 2 row among ℓ = 3 ones into a mirror
+    ball of 2048, ±0.34 %. The spline across rows read at different levels is what the kernel handles anyway
+    (the level steps at the cap's edge)."""
+    h = levels.size
+    rising = levels.copy()
+    rising[:h // 2] = np.maximum.accumulate(levels[:h // 2][::-1])[::-1]  # north: row 0 is the pole
+    rising[h // 2:] = np.maximum.accumulate(levels[h // 2:])
+    return rising
 
 
 def kernel_levels(levels: np.ndarray, width: int) -> np.ndarray:
