@@ -162,6 +162,9 @@ def resample_strips(source: EnvMap, target: Layout, size: int | None = None, *, 
     return (h, faces * w), strips()
 
 
+_LINKING = threading.local()  # while link_kernels runs its small map: .small, and .uncorrected where the map is not
+
+
 def link_kernels(source: Layout, source_pixels: int, target: Layout, size: int, *,
                  rotation: np.ndarray | None = None, streamed: bool = True) -> None:
     """Run the compiled kernels of a conversion — a map of ``source_pixels`` in layout ``source`` into ``target`` of
@@ -169,21 +172,24 @@ def link_kernels(source: Layout, source_pixels: int, target: Layout, size: int, 
     the map itself is read (``lightprobe convert``; see :func:`lightprobe.jit.release_compiler_pages`). The route
     that matters is whether the flux is corrected (:func:`_corrected`): a lat-long of 64 rows into a disc is and a
     4k one is not, and linked on 64 rows that correction's kernels (~5 MiB resident) stayed beside a 4k map that
-    never ran them. The small map doubles its rows until it takes the same turn (box reductions are numpy's: no
+    never ran them. Where the map is not corrected, the small one is run without (box reductions are numpy's: no
     kernel to link)."""
     grid = source.grid_shape(source.default_size(round(source_pixels * source.valid_fraction)))
     reduced_layout, reduced = _reduced_grid(source, grid, target, target.grid_shape(size))
     corrected = _corrected(reduced_layout, reduced, target, None)
     rows = 64
-    while _corrected(source, source.grid_shape(rows), target, None) != corrected and rows < 1024:
-        rows *= 2
     small = EnvMap(np.zeros(source.grid_shape(rows) + (3,), np.float32), source)
     small_size = rows // 2  # 4–10 source pixels a target pixel: read as it is, not box-reduced
-    if streamed:
-        for _ in resample_strips(small, target, small_size, rotation=rotation)[1]:
-            pass
-    else:
-        resample(small, target, small_size, rotation=rotation)
+    _LINKING.uncorrected = not corrected  # a small lat-long into a disc is corrected where a 4k one is not
+    _LINKING.small = True  # a small map's memory is not checked: the map's own conversion is, after this
+    try:
+        if streamed:
+            for _ in resample_strips(small, target, small_size, rotation=rotation)[1]:
+                pass
+        else:
+            resample(small, target, small_size, rotation=rotation)
+    finally:
+        _LINKING.uncorrected = _LINKING.small = False
 
 
 def _cross_strips(plan: _Plan, target: Cross, strip_pixels: int):
@@ -253,8 +259,9 @@ def _prepared(source: EnvMap, target: Layout, size: int | None, samples: int | N
     measured steps it was chosen from."""
     size = size or target.default_size(source.valid_pixels)
     pixels = check_size(target, size)
-    check_memory(resample_memory(math.prod(source.grid), pixels, target, source.layout),
-                 f"resampling to {target.name} size {size}", kernels=True)
+    if not getattr(_LINKING, "small", False):
+        check_memory(resample_memory(math.prod(source.grid), pixels, target, source.layout),
+                     f"resampling to {target.name} size {size}", kernels=True)
     grid = target.grid_shape(size)
     if isinstance(source.layout, Cross):  # exact rearrangement; the cube has a seamless padding
         source = EnvMap(source.layout.to_cube(source.data), CUBE)
@@ -713,12 +720,17 @@ _FLUX_CACHE_BYTES = 256 << 20  # the corrections a process keeps (a batch conver
 
 
 # Lat-long sources are flux-corrected into discs up to this many pixels (as the conversion reads them, after any box
-# reduction): a 16–32-pixel disc's outer rings span 20–40° each, and a one-pixel sun read by them came out 0.26–0.74 %
-# off (no rate fixes a pixel that straddles the rim). A disc of 64 pixels or more from a larger source holds 0.2 %
-# by its rates (LATLONG_SPHERE_MAX_SAMPLES, fused.LATLONG_ANGULAR_SPACING) and, to its rim direction, by
-# its rim pixels' rows round it (fused._rim_subsamples); a 4k lat-long's correction would hold ~100 B a pixel while
-# it is made, more than convert may (tests/test_limits.py): there it is not made.
-LATLONG_FLUX_MAX_PIXELS = 1 << 16
+# reduction): 2048×1024. A 16–32-pixel disc's outer rings span 20–40° each, and a one-pixel sun read by them came out
+# 0.26–0.74 % off (no rate fixes a pixel that straddles the rim). Larger discs hold most of the 0.2 % by their rates
+# (LATLONG_SPHERE_MAX_SAMPLES, fused.LATLONG_ANGULAR_SPACING) and, to the rim direction, by their rim pixels' rows
+# round it (fused._rim_subsamples), but not all of it: where a ball's rim-row pixel meets a plain one (lat-long
+# 2048×1024 → mirror ball 512, 0.22 % 10–25° from its rim direction; 1536×768 → 384, 0.25 %), where the rates step
+# mid-ball (1024×512 → 817, the default size, 0.33 %), at an angular map's rim direction (2048×1024 → 1634, 0.34 %):
+# corrected, each is exact. It costs 2.4× the conversion the first time (2048×1024 → mirror ball 512–1024, 1.1–1.5 s
+# → 2.7–3.6 s; then the weights are cached) and ~130 B a source pixel while it is made (+270 MB at 2048×1024). A 4k
+# lat-long's correction would hold more than convert may (tests/test_limits.py: 3× the map): there it is not made,
+# and those figures stand (4096×2048 → mirror ball 1024, 0.41 % 2–10° from its rim direction).
+LATLONG_FLUX_MAX_PIXELS = 1 << 21
 
 
 def _flux_corrects(source_layout: Layout, source_pixels: int, target: Layout) -> bool:
@@ -736,7 +748,10 @@ def _flux_corrects(source_layout: Layout, source_pixels: int, target: Layout) ->
 
 
 def _corrected(source_layout: Layout, source_grid: tuple[int, ...], target: Layout, samples: int | None) -> bool:
-    """Whether this conversion gets a flux correction: :func:`_flux_corrects`, with the rate left automatic."""
+    """Whether this conversion gets a flux correction: :func:`_flux_corrects`, with the rate left automatic (and
+    not while :func:`link_kernels` runs a small map for a large one that is not corrected)."""
+    if getattr(_LINKING, "uncorrected", False):
+        return False
     return samples is None and _flux_corrects(source_layout, math.prod(source_grid), _face_layout(target))
 
 
