@@ -258,8 +258,8 @@ def _every_pixel_gains() -> dict[str, tuple[float, float]]:
              ("mirror ball 128 → angular 16 (was 18.8 %: halved to 64 for so small a target)", "sphere", 128,
               "angular", 16),
              ("lat-long 128 → mirror ball 32 (0.73 % before the flux correction)", "latlong", 128, "sphere", 32),
-             ("lat-long 256 → angular 128 (not flux-corrected; 0.27 % at 0.5 pixels between lookups)", "latlong",
-              256, "angular", 128),
+             ("lat-long 256 → angular 128 (0.10 % by its rates alone before lat-longs up to 2048×1024 were "
+              "flux-corrected; 0.27 % at 0.5 pixels between lookups)", "latlong", 256, "angular", 128),
              ("cube 64 → cube 64 (corner texels: was 4.6 %; 0.86 % before the texel balance, 0.13 % before the "
               "flux correction)", "cube", 64, "cube", 64),
              ("cube 64 → lat-long 32 (2.4 % before the flux correction)", "cube", 64, "latlong", 32),
@@ -268,10 +268,11 @@ def _every_pixel_gains() -> dict[str, tuple[float, float]]:
              ("cube 64 → mirror ball 64, no margin (was 40 % within 25° of the ball's rim direction)", "cube", 64,
               "sphere", 64, None),
              ("lat-long 128 → mirror ball 64, no margin (was 55 % there)", "latlong", 128, "sphere", 64, None),
-             ("lat-long 256 → mirror ball 128, no margin (not flux-corrected; 33 % by the rim direction before its "
-              "rim pixels were sampled round it)", "latlong", 256, "sphere", 128, None),
-             ("lat-long 256 → angular 128, no margin (not flux-corrected; 0.46 % by the rim direction before its "
-              "rim pixels were sampled round it)", "latlong", 256, "angular", 128, None),
+             ("lat-long 256 → mirror ball 128, no margin (33 % by the rim direction before its rim pixels were "
+              "sampled round it, 0.19 % by them alone, before its flux correction)", "latlong", 256, "sphere", 128,
+              None),
+             ("lat-long 256 → angular 128, no margin (0.46 % by the rim direction before its rim pixels were "
+              "sampled round it, 0.09 % by them alone)", "latlong", 256, "angular", 128, None),
              ("angular 256 → lat-long 128, no margin (was 555 % within 2° of the angular map's rim direction, left "
               "uncorrected within 20° until the pixels there were read round it)", "angular", 256, "latlong", 128,
               None),
@@ -283,6 +284,16 @@ def _every_pixel_gains() -> dict[str, tuple[float, float]]:
         gains = np.abs(gains[np.isfinite(gains)])
         out[label] = (float(gains.max()), float((gains > 2e-3).mean()))
     return out
+
+
+def _rows_alone(target: str) -> np.ndarray:
+    """Gains of lat-long 256 → ``target`` 128 with no margin before its flux correction: what the rates and rim rows
+    hold alone, as a 4k lat-long (too large to be corrected) has them."""
+    from .envmap import Resampler
+    from .layouts import layout
+
+    src = layout("latlong")
+    return Resampler(src, src.grid_shape(256), layout(target), 128).without_flux_correction().energy_gains()
 
 
 def _gain_pictures(rep: Report) -> str:
@@ -304,9 +315,9 @@ def _gain_pictures(rep: Report) -> str:
     into_ball = Resampler(cube, cube.grid_shape(64), layout("sphere"), 64).without_flux_correction().energy_gains()
     ball_strip = np.concatenate(list(into_ball), axis=1)
     surplus = balance.face_texel_integrals(64) / pixel_solid_angles(cube, cube.grid_shape(64))[0] - 1
-    big_to_ball = _pair_gains("latlong", 256, "sphere", 128, None)  # not flux-corrected; the table's row too
+    big_to_ball = _rows_alone("sphere")  # what a 4k lat-long, not flux-corrected, keeps
     back = big_to_ball[128 - 43:128 + 43, 256 - 43:256 + 43]  # ±30° round the ball's rim direction (−Z)
-    big_to_angular = _pair_gains("latlong", 256, "angular", 128, None)  # the same for an angular map's (+Z: the seam)
+    big_to_angular = _rows_alone("angular")  # the same for an angular map's (+Z: the seam)
     front = np.roll(big_to_angular, 256, axis=1)[128 - 43:128 + 43, 256 - 43:256 + 43]
     scale = "black 0, white 1 % or more; grey: no sphere, or within 25° of a rim direction"
     return (rep.display_picture("energy_ball_one_rate", heatmap(np.abs(one_rate), 0.01),
@@ -328,12 +339,14 @@ def _gain_pictures(rep: Report) -> str:
                                   "corrected like the faint rest (≤ 1.5 %): after it every pixel is exact (black 0, "
                                   "white 5 % or more)", width=768)
             + rep.display_picture("energy_latlong_ball_rim", heatmap(np.abs(back), 0.002),
-                                  "lat-long 256 → mirror ball 128 (too large for the flux correction), every pixel "
-                                  "with no margin, the lat-long's ±30° round the ball's rim direction: its rim pixels "
-                                  "are sampled round that direction; with even cells in the image this was a moiré "
-                                  "up to 33 % (black 0, white 0.2 %, the bar, or more)", width=256)
+                                  "lat-long 256 → mirror ball 128 before its flux correction (what a 4k lat-long, "
+                                  "too large for one, keeps), every pixel with no margin, the lat-long's ±30° round "
+                                  "the ball's rim direction: its rim pixels are sampled round that direction; with "
+                                  "even cells in the image this was a moiré up to 33 %; corrected, every pixel is "
+                                  "exact (black 0, white 0.2 %, the bar, or more)", width=256)
             + rep.display_picture("energy_latlong_angular_rim", heatmap(np.abs(front), 0.002),
-                                  "lat-long 256 → angular 128, the same way round the angular map's rim direction: "
+                                  "lat-long 256 → angular 128, the same way round the angular map's rim direction, "
+                                  "before its flux correction: "
                                   "its pixels that the rim crosses are sampled round it; with even cells the four "
                                   "source pixels at the centre were 0.46 % over (black 0, white 0.2 % or more)",
                                   width=256)
