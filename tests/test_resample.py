@@ -607,7 +607,7 @@ def test_reduced_rows_are_the_mean_of_their_columns():
     levels = np.zeros(40, np.int64)
     levels[:5], levels[5:9], levels[-3:] = [3, 3, 2, 2, 1], 1, [1, 2, 3]
     got_levels, reduced, offsets, caps = polar.reduced_rows(data, levels)
-    assert caps.tolist() == [9, 3] and polar.max_level(80) == 3
+    assert caps.tolist() == [9, 3] and polar.max_level(80) == 4  # 80 → 40 → 20 → 10 → 5
     for row in np.nonzero(levels)[0]:
         n = 1 << levels[row]
         want = data[row].astype(np.float64).reshape(80 // n, n, 3).mean(axis=1)
@@ -641,22 +641,36 @@ def test_a_whole_row_level_reads_the_rows_mean():
 
 
 def test_a_width_that_cannot_be_halved_is_read_as_it_is():
-    """A lat-long whose width is not a multiple of 4 has no reduction (:func:`polar.max_level` 0): its rows are
+    """A lat-long too narrow to halve (under 8 columns: :func:`polar.max_level` 0) has no reduction: its rows are
     read as they are, whatever level the lookups asked for — no empty row to fill with a mean (numpy warned
-    "Mean of empty slice" there)."""
+    "Mean of empty slice" there). A width of 2 × odd halves once, to an odd width."""
     import warnings
 
     from lightprobe.envmap import polar
 
-    data = np.ones((15, 30, 3), np.float32)
-    levels = np.zeros(15, np.int64)
-    levels[:2] = 1, polar.max_level(30) + 1
-    assert polar.max_level(30) == 0
+    data = np.ones((3, 6, 3), np.float32)
+    levels = np.zeros(3, np.int64)
+    levels[:2] = 1, polar.max_level(6) + 1
+    assert polar.max_level(6) == 0 and polar.max_level(30) == 1 and polar.max_level(746) == 1
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         got = polar.reduced_rows(data, levels)
-    for want, have in zip(polar.no_reduction(15), got):
+    for want, have in zip(polar.no_reduction(3), got):
         np.testing.assert_array_equal(have, want)
+
+
+@pytest.mark.parametrize("rows, target, size", [(373, "cube", 352), (998, "sphere", 326), (760, "angular", 72)])
+def test_a_lat_long_of_odd_height_keeps_every_suns_energy(rows, target, size):
+    """W = 2 × odd (an odd height, or one halved to it for a small target: 998 → 499): its rows by the poles halve
+    once, to an odd width, and are read half a turn on across the pole at a half column. Before, such a width had
+    no reduction at all, and a sun by the pole took +2920 % (746×373 → cube 352) and +1923 % (998 rows → mirror
+    ball 326) of its energy. Every pixel of the source, no margin."""
+    from lightprobe.envmap import Resampler
+
+    src = layout("latlong")
+    gains = np.abs(Resampler(src, src.grid_shape(rows), layout(target), size).energy_gains())
+    worst = np.nanmax(gains)
+    assert worst < 2e-3, f"{100 * worst:.3f} %"
 
 
 def test_lookups_nearer_the_pole_than_their_pixel_spread_over_more_columns():

@@ -363,11 +363,11 @@ def _in_frame(x, level, shift):  # pragma: no cover - compiled
 @njit(cache=True, inline="always", error_model="numpy")
 def _row_frame(levels, h, w, row):  # pragma: no cover - compiled
     """Tile row ``row`` of a latlong (past a pole or not) → (source row, its level, its width, column shift: half
-    its width when the row is reached across the pole)."""
+    its width when the row is reached across the pole — a half column where the width is odd)."""
     src_row, turned = _reflected_row(row, h)
     level = levels[src_row]
     width = w >> level
-    return src_row, level, width, width // 2 if turned else 0
+    return src_row, level, width, 0.5 * width if turned else 0.0
 
 
 @njit(cache=True, error_model="numpy")
@@ -381,7 +381,7 @@ def _row_tile(levels, h, w, pxs, pys, pws, n, scale, r0, th, tile, c0s, tws, tap
         c0s[ty], tws[ty] = 1 << 62, -(1 << 62)  # lowest and highest first column, until the end
     for s in range(n):
         fy = int(math.floor(pys[s]))
-        last_level, last_shift, q = -1, -1, 0.0
+        last_level, last_shift, q = -1, -1.0, 0.0
         for dy in range(4):
             ty = fy - 1 + dy - r0
             _, level, _, shift = _row_frame(levels, h, w, fy - 1 + dy)
