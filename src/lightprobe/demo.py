@@ -258,6 +258,8 @@ def _every_pixel_gains() -> dict[str, tuple[float, float]]:
              ("mirror ball 128 → angular 16 (was 18.8 %: halved to 64 for so small a target)", "sphere", 128,
               "angular", 16),
              ("lat-long 128 → mirror ball 32 (0.73 % before the flux correction)", "latlong", 128, "sphere", 32),
+             ("lat-long 746×373 → cube 352 (an odd height: +2920 % by the poles before a row's last halving could "
+              "leave an odd width)", "latlong", 373, "cube", 352),
              ("lat-long 256 → angular 128 (0.10 % by its rates alone before lat-longs up to 2048×1024 were "
               "flux-corrected; 0.27 % at 0.5 pixels between lookups)", "latlong", 256, "angular", 128),
              ("cube 64 → cube 64 (corner texels: was 4.6 %; 0.86 % before the texel balance, 0.13 % before the "
