@@ -132,14 +132,16 @@ def test_a_disc_targets_rim_is_corrected_like_the_rest(source, size, target, out
     """Into a disc, the source pixels by the target's rim direction (which its outer rings spread over a ring) are
     corrected too: every pixel exact, no margin — 10–55 % off while they were ground. Lat-long 128 → mirror ball 64
     needs weights over 0.5 there (13 % off at 0.5). Lat-long 64 → angular 24, the pair here before, holds 0.19 %
-    uncorrected since an angular map's rim pixels are sampled round the rim direction; 64 → 16 still needs it."""
+    uncorrected since an angular map's rim pixels are sampled round the rim direction; 64 → 16 still needs it.
+    Lat-long 128 → mirror ball 64 reads 0.18 % uncorrected (0.35 % before) since its long ring pixels are read
+    round the rim direction too (fused._rim_polar): over 0.1 % is what is asked of the rows alone here."""
     src = layout(source)
     grid = src.grid_shape(size)
     resample_module._FLUX_CACHE.clear()
     gains = np.abs(Resampler(src, grid, layout(target), out_size).energy_gains())
     assert np.nanmax(gains) < 1e-5
     monkeypatch.setattr(resample_module, "_flux_stencil", lambda *args, **kwargs: None)
-    assert np.nanmax(np.abs(Resampler(src, grid, layout(target), out_size).energy_gains())) > 2e-3
+    assert np.nanmax(np.abs(Resampler(src, grid, layout(target), out_size).energy_gains())) > 1e-3
 
 
 @pytest.mark.parametrize("size, target, out_size", [(512, "cube", 64), (256, "angular", 64)])

@@ -19,7 +19,7 @@ def _rim_call(row, col, n, source_rows, target="sphere"):
     m = 32 * 32 + 1
     pfs, pxs, pys, pws = np.zeros(m, np.int64), np.zeros(m), np.zeros(m), np.zeros(m)
     count, wsum = rim(fused.CODES[target], _axes(layout(target)), row, col, n, n, np.eye(3), fused.LATLONG,
-                      np.eye(3), source_rows, 2 * source_rows, pfs, pxs, pys, pws)
+                      np.eye(3), source_rows, 2 * source_rows, 32, pfs, pxs, pys, pws)
     return count, wsum, pws[:count]
 
 
@@ -49,10 +49,13 @@ def test_a_large_balls_rim_pixel_fits_its_scratch(row, col):
 def _check_rim_pixel(row, col, n, source_rows):
     from lightprobe.envmap import fused
 
+    from lightprobe.envmap.resampling import _axes
+
     count, wsum, weights = _rim_call(row, col, n, source_rows)
     assert count <= 32 * 32 + 1
     lo, hi = fused._rim_span.py_func(fused.SPHERE, row, col, n, n)
-    if hi < fused.RIM_POLAR_SPAN * lo:
+    if not fused._rim_polar.py_func(fused.SPHERE, _axes(layout("sphere")), row, col, n, n, np.eye(3), fused.LATLONG,
+                                    np.eye(3), source_rows, 2 * source_rows, 32):
         assert count == 0
         return
     assert count > 4
@@ -91,6 +94,51 @@ def test_a_large_lat_longs_sun_keeps_its_energy_to_a_mirror_balls_rim(rows, ball
     worst = np.nanmax(np.abs(resampler.without_flux_correction().energy_gains()))
     assert worst < 2e-3, f"{100 * worst:.3f} %"
     assert np.nanmax(np.abs(resampler.energy_gains())) < 1e-5
+
+
+def test_a_large_balls_long_ring_pixels_are_sampled_round_the_rim_direction():
+    """Ball 512 from a lat-long of 2048 rows: the rings just inside the rim pixels span 20–50 source rows radially,
+    more than twice what k_max cells reach at the pair's spacing, and are sampled round the rim direction too (their
+    weights still sum to their area); from the rim inwards along the ball's middle row, a run of them, then the
+    plain cells only."""
+    from lightprobe.envmap import fused
+    from lightprobe.envmap.resampling import _axes
+
+    n, source_rows = 512, 2048
+    polar = [fused._rim_polar.py_func(fused.SPHERE, _axes(layout("sphere")), 256, col, n, n, np.eye(3),
+                                      fused.LATLONG, np.eye(3), source_rows, 2 * source_rows, 32)
+             for col in range(1, 40)]
+    shape = [fused._rim_span.py_func(fused.SPHERE, 256, col, n, n) for col in range(1, 40)]
+    assert not any(hi >= fused.RIM_POLAR_SPAN * lo for lo, hi in shape)  # none for its shape
+    run = polar.index(False)
+    assert run >= 3 and not any(polar[run:]), polar
+    assert math.degrees(shape[run][0]) < math.degrees(fused.RIM_SHORT_REACH)
+    for col in (1, run // 2 + 1, run):
+        _check_rim_pixel(256, col, n, source_rows)
+    _check_rim_pixel(10, 200, n, source_rows)  # 20° from the rim direction, off the axes
+
+
+@pytest.mark.parametrize("rows, ball, bound", [
+    (2048, 1024, 2e-3),  # 0.41 % 7° from the rim direction: the second ring, 33 rows deep, read by 32 × 32 cells
+    (2048, 3268, 2e-3),  # its default size: 0.30 % where the rates step mid-ball (lookups 0.5 apart)
+    (1042, 415, 2e-3),  # just over the correction's limit: 0.47 % 11° from the rim direction
+])
+def test_a_lat_long_too_large_for_the_flux_correction_keeps_every_suns_energy_in_a_mirror_ball(rows, ball, bound):
+    """Lat-longs over 2048×1024 are not flux-corrected (tests/test_limits.py: a 4k map's correction would hold more
+    than convert may): every source pixel's delivery, by the kernels' own adjoint (resampling.delivered), no rim
+    margin, within issue 9's 0.2 %."""
+    from lightprobe.envmap import resampling as rs
+    from lightprobe.envmap.map import pixel_solid_angles
+
+    src, target = layout("latlong"), layout("sphere")
+    grid, target_grid = src.grid_shape(rows), target.grid_shape(ball)
+    assert not rs._corrected(src, grid, target, None)
+    k, steps = rs.supersampling(src, grid, target, target_grid, None, None)
+    assert rs._reduced_grid(src, grid, target, target_grid)[1] == grid  # read whole, as here
+    taps = rs._Taps(src, grid, target, ball, k, rs.adaptive_rate(src, target, k), steps, None)
+    delivery = rs.delivered(taps, grid, pixel_solid_angles(target, target_grid).reshape(-1))
+    worst = np.abs(delivery.reshape(grid) / pixel_solid_angles(src, grid) - 1).max()
+    assert worst < bound, f"{100 * worst:.3f} %"
 
 
 def test_the_compiled_disc_area_is_the_layouts_one():

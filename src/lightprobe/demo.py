@@ -273,6 +273,9 @@ def _every_pixel_gains() -> dict[str, tuple[float, float]]:
              ("lat-long 256 → mirror ball 128, no margin (33 % by the rim direction before its rim pixels were "
               "sampled round it, 0.19 % by them alone, before its flux correction)", "latlong", 256, "sphere", 128,
               None),
+             ("lat-long 2200×1100 → mirror ball 500, no margin (over 2048×1024, so not flux-corrected: its rows "
+              "alone; 0.28 % before lookups 0.35 source pixels apart and long ring pixels read round the rim "
+              "direction)", "latlong", 1100, "sphere", 500, None),
              ("lat-long 256 → angular 128, no margin (0.46 % by the rim direction before its rim pixels were "
               "sampled round it, 0.09 % by them alone)", "latlong", 256, "angular", 128, None),
              ("angular 256 → lat-long 128, no margin (was 555 % within 2° of the angular map's rim direction, left "

@@ -555,6 +555,20 @@ ADAPTIVE_SPACING = 0.5  # source pixels between neighbouring lookups, at most, w
 # 2048 → 1024); lookups 0.4 source pixels apart hold it to 0.12 %, for 1.1–1.25× the conversion's time (lat-long
 # 2048 → angular 256–1024).
 LATLONG_ANGULAR_SPACING = 0.4
+# From a lat-long into a mirror ball, the rings where the rate steps mid-ball (60–90° from its rim direction) held a
+# one-pixel sun to 0.30–0.33 % at 0.5 (lat-long 512 → 817, 2048 → 3268: the balls' default sizes); at 0.35, 0.12 %.
+# Flux-corrected below LATLONG_FLUX_MAX_PIXELS, this is what a larger lat-long keeps.
+LATLONG_SPHERE_SPACING = 0.35
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _pair_spacing(src_kind, tgt_kind):  # pragma: no cover - compiled
+    """Source pixels between neighbouring lookups, at most, where the rate adapts, for this pair of layouts."""
+    if src_kind == LATLONG and tgt_kind == ANGULAR:
+        return LATLONG_ANGULAR_SPACING
+    if src_kind == LATLONG and tgt_kind == SPHERE:
+        return LATLONG_SPHERE_SPACING
+    return ADAPTIVE_SPACING
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -629,8 +643,7 @@ def _from_cube_vertex(tgt_kind, tgt_axes, face, u, v, rotation, src_axes, src_h,
 def _rates(tgt_kind, tgt_axes, face, row, col, h, w, k, k_max, rotation, src_kind, src_axes, src_h,
            src_w):  # pragma: no cover - compiled
     """(ku, kv): one target pixel's subsamples across and down — k each, raised up to ``k_max`` until
-    neighbouring lookups land at most :data:`ADAPTIVE_SPACING` source pixels apart
-    (:data:`LATLONG_ANGULAR_SPACING` from a lat-long into an angular map). The steps are measured over
+    neighbouring lookups land at most :data:`ADAPTIVE_SPACING` source pixels apart (:func:`_pair_spacing`). The steps are measured over
     the pixel's middle half (it stays inside its face and its disc). Where a disc's rim stretches one direction
     over a ring, a pixel's footprint in the other layout is many pixels long one way, and a cube's corner texels
     are a fifth of its centre's: with one rate for the whole map, a sun in such a pixel was hit or missed — ±15 %
@@ -644,11 +657,13 @@ def _rates(tgt_kind, tgt_axes, face, row, col, h, w, k, k_max, rotation, src_kin
                                 src_kind, src_axes, src_h, src_w)
     down = 2.0 * _source_step(tgt_kind, tgt_axes, face, uc, (row + 0.25) / h, uc, (row + 0.75) / h, rotation,
                               src_kind, src_axes, src_h, src_w)
-    spacing = LATLONG_ANGULAR_SPACING if src_kind == LATLONG and tgt_kind == ANGULAR else ADAPTIVE_SPACING
+    spacing = _pair_spacing(src_kind, tgt_kind)
     need = max(across, down) / spacing
     short = need > SOURCE_RIM_SHORT * k_max  # the cells fall far short of the spacing (see SOURCE_RIM_MARK)
-    ku = min(max(k, int(math.ceil(across / spacing - 1e-9))), k_max)
-    kv = min(max(k, int(math.ceil(down / spacing - 1e-9))), k_max)
+    ku = max(k, int(math.ceil(across / spacing - 1e-9)))
+    kv = max(k, int(math.ceil(down / spacing - 1e-9)))
+    if tgt_kind != SPHERE:
+        ku, kv = min(ku, k_max), min(kv, k_max)
     if src_kind == CUBE and not _aligned_cubes(tgt_kind, rotation):
         away = _from_cube_vertex(tgt_kind, tgt_axes, face, uc, vc, rotation, src_axes, src_h, src_w)
         pixels = max(0.0, away - CUBE_VERTEX_REACH - 0.5 * max(across, down)) / max(across, down, 1e-9)
@@ -657,7 +672,25 @@ def _rates(tgt_kind, tgt_axes, face, row, col, h, w, k, k_max, rotation, src_kin
     if tgt_kind == LATLONG:
         from_pole = min(row, h - 1 - row)
         kv = max(kv, k_max - POLE_RAMP * from_pole)
+    ku, kv = _within_budget(ku, kv, k_max)
     return ku, kv, short
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _within_budget(ku, kv, k_max):  # pragma: no cover - compiled
+    """(ku, kv) held to the scratch's k_max² subsamples: a side may take more than k_max where the other needs
+    fewer (a mirror ball's ring pixels are long one way and a sliver the other: from a 4k lat-long, ball 1024's
+    pixels 10–25° from its rim direction span 11–22 rows radially, where 32 lookups left a one-pixel sun 0.25 %
+    off); where both want more, each is cut to k_max and the other given what is left. Mirror-ball targets only
+    (:func:`_rates`), where it was measured to be needed; elsewhere each side keeps to k_max."""
+    budget = k_max * k_max
+    if ku * kv <= budget:
+        return ku, kv
+    if ku >= kv:
+        kv = min(kv, k_max)
+        return min(ku, budget // kv), kv
+    ku = min(ku, k_max)
+    return ku, min(kv, budget // ku)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -689,7 +722,8 @@ def _rate_rows(tgt_kind, tgt_axes, face, row, h, w, k, k_max, rotation, src_kind
         for col in range(w):
             # A disc source's rim direction first, a disc target's rim next (its rows serve its own rim direction,
             # not the ring a disc source spreads another over), then the cells' own rates
-            polar = _rim_polar(tgt_kind, r, col, h, w)
+            polar = _rim_polar(tgt_kind, tgt_axes, r, col, h, w, rotation, src_kind, src_axes, src_h, src_w,
+                               k_max)
             disc_source = src_kind == ANGULAR or src_kind == SPHERE
             ku, kv, short = RIM_MARK, RIM_MARK, False
             if disc_source or not polar:
@@ -711,7 +745,7 @@ def _source_rim_marked(rates, row, col, k, k_max):  # pragma: no cover - compile
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _pixel_rates(rates, tgt_kind, row, col, h, w, k, k_max):  # pragma: no cover - compiled
+def _pixel_rates(rates, src_kind, tgt_kind, row, col, h, w, k, k_max):  # pragma: no cover - compiled
     """(ku, kv, ku left, ku right, kv above, kv below) of pixel (row, col) from :func:`_rate_rows`' buffer: its
     rates and its four neighbours' on its face (a lat-long's columns wrap); past a face's edge, its own. At a
     fixed rate, k six times."""
@@ -732,13 +766,15 @@ def _pixel_rates(rates, tgt_kind, row, col, h, w, k, k_max):  # pragma: no cover
         above = rates[(row - 1) % 3, 1, col]
     if row < h - 1:
         below = rates[(row + 1) % 3, 1, col]
-    # A neighbour sampled round the rim direction has its rows RIM_SPACING apart, half the cells' spacing here: the
-    # end cells at that edge are graded to half a cell (towards 3k), so that the two pixels' midpoint rules, each
-    # off by a term in its spacing² at the edge, still cancel there (a one-pixel sun 0.9 % off where they did not).
-    left = RIM_EDGE * ku if left == RIM_MARK else k_max if left == SOURCE_RIM_MARK else left
-    right = RIM_EDGE * ku if right == RIM_MARK else k_max if right == SOURCE_RIM_MARK else right
-    above = RIM_EDGE * kv if above == RIM_MARK else k_max if above == SOURCE_RIM_MARK else above
-    below = RIM_EDGE * kv if below == RIM_MARK else k_max if below == SOURCE_RIM_MARK else below
+    # A neighbour sampled round the rim direction has its rows _rim_spacing apart, a fraction of the cells' spacing
+    # here: the end cells at that edge are graded to that width (towards edge × k: 3k for cells 0.5 apart and rows
+    # 0.25), so that the two pixels' midpoint rules, each off by a term in its spacing² at the edge, still cancel
+    # there (a one-pixel sun 0.9 % off where they did not).
+    edge = 2.0 * _pair_spacing(src_kind, tgt_kind) / _rim_spacing(tgt_kind) - 1.0
+    left = int(edge * ku + 0.5) if left == RIM_MARK else k_max if left == SOURCE_RIM_MARK else left
+    right = int(edge * ku + 0.5) if right == RIM_MARK else k_max if right == SOURCE_RIM_MARK else right
+    above = int(edge * kv + 0.5) if above == RIM_MARK else k_max if above == SOURCE_RIM_MARK else above
+    below = int(edge * kv + 0.5) if below == RIM_MARK else k_max if below == SOURCE_RIM_MARK else below
     return ku, kv, left, right, above, below
 
 
@@ -756,6 +792,17 @@ RIM_SPLIT = 8  # sub-rows of a ring band that the pixel's edge cuts along its le
 RIM_SPACING = 0.25  # source pixels between a rim pixel's rows and its subsamples along a row (at 0.5: 0.36 % by the
 #                     ring's inner edge, lat-long 512 → mirror ball 256; the rows' error at the rim direction itself
 #                     is taken off in _rim_subsamples)
+# A mirror ball's: its rings inside RIM_SHORT_REACH are sampled so too where they are long (_rim_polar), and there
+# rows 0.25 apart, beside a plain pixel, left a sun 0.28 % off (lat-long 2048 → mirror ball 840, 17° from the rim
+# direction; 0.14 % at 0.125). An angular map keeps 0.25: at 0.125 its rim direction's sun went from 0.26 to 0.53 %
+# (lat-long 2048 → angular 3268), the end term at that direction it leaves uncorrected (_rim_subsamples).
+SPHERE_RIM_SPACING = 0.125
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _rim_spacing(tgt_kind):  # pragma: no cover - compiled
+    """Source pixels between a disc target's rim rows and between their subsamples (:func:`_rim_subsamples`)."""
+    return SPHERE_RIM_SPACING if tgt_kind == SPHERE else RIM_SPACING
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -871,56 +918,89 @@ def _rim_span(tgt_kind, row, col, h, w):  # pragma: no cover - compiled
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _rim_sampled(tgt_kind, rho_lo, rho_hi):  # pragma: no cover - compiled
-    """Whether a disc pixel spanning ``rho_lo`` … ``rho_hi`` from the rim direction is sampled round it: on a
-    mirror ball where its ρ spans :data:`RIM_POLAR_SPAN`× its least (r = cos(ρ/2) is flat there); on an angular map
-    (r = 1 − ρ/π: even cells stay even in ρ) only the pixels the rim crosses, whose rim direction is the one the
-    plain cells miss — sampled so out to twice their least ρ, a 16-pixel map's second ring took a lat-long's sun
-    up to 23 % off before its flux correction (0.26 % with its plain cells)."""
+    """Whether a disc pixel spanning ``rho_lo`` … ``rho_hi`` from the rim direction is sampled round it for its
+    shape alone: on a mirror ball where its ρ spans :data:`RIM_POLAR_SPAN`× its least (r = cos(ρ/2) is flat
+    there); on an angular map (r = 1 − ρ/π: even cells stay even in ρ) only the pixels the rim crosses, whose rim
+    direction is the one the plain cells miss — sampled so out to twice their least ρ, a 16-pixel map's second ring
+    took a lat-long's sun up to 23 % off before its flux correction (0.26 % with its plain cells)."""
     if tgt_kind == ANGULAR:
         return rho_lo == 0.0
     return rho_hi >= RIM_POLAR_SPAN * rho_lo
 
 
+# A mirror ball's rings just inside those are each a few source rows deep radially and a sliver across: from a 4k
+# lat-long, ball 1024's second ring (7–10° from its rim direction) spans 33 rows, where k_max = 32 cells a side left
+# the lookups a row apart and a one-pixel sun 0.41 % off (ball 1536: 0.24 %). A ring pixel whose radial span needs
+# more than k_max lookups at the pair's spacing is sampled round the rim direction too, where the rows follow ρ.
+RIM_SHORT = 2.0
+RIM_SHORT_REACH = 0.5 * math.pi  # ... within this of the rim direction (the ball's back half)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _rim_radial(tgt_kind, tgt_axes, rho_lo, rho_hi, centre, rotation, src_kind, src_axes, src_h,
+                src_w):  # pragma: no cover - compiled
+    """Source pixels a disc pixel spanning ``rho_lo`` … ``rho_hi`` covers radially, along angle ``centre``
+    (twice the step across the middle half of its span)."""
+    span = rho_hi - rho_lo
+    u0, v0 = _rim_point(tgt_kind, rho_lo + 0.25 * span, centre)
+    u1, v1 = _rim_point(tgt_kind, rho_lo + 0.75 * span, centre)
+    return 2.0 * _source_step(tgt_kind, tgt_axes, 0, u0, v0, u1, v1, rotation, src_kind, src_axes, src_h, src_w)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _disc_angle(a0, a1, b0, b1):  # pragma: no cover - compiled
+    """The angle round a disc image's centre of the middle of square [a0, a1] × [b0, b1]."""
+    return math.atan2(0.5 * (b0 + b1), 0.5 * (a0 + a1))
+
+
 @njit(cache=True, error_model="numpy", fastmath=False)  # as _rim_subsamples: every kernel decides alike
-def _rim_polar(tgt_kind, row, col, h, w):  # pragma: no cover - compiled
-    """Whether target pixel (row, col) is sampled round the rim direction (:func:`_rim_subsamples`)."""
+def _rim_polar(tgt_kind, tgt_axes, row, col, h, w, rotation, src_kind, src_axes, src_h, src_w,
+               k_max):  # pragma: no cover - compiled
+    """Whether target pixel (row, col) is sampled round the rim direction (:func:`_rim_subsamples`): for its shape
+    (:func:`_rim_sampled`) or, on a mirror ball within :data:`RIM_SHORT_REACH` of its rim direction, where its
+    radial span needs more than ``k_max`` lookups at the pair's spacing (:func:`_pair_spacing`)."""
     if tgt_kind != SPHERE and tgt_kind != ANGULAR:
         return False
     rho_lo, rho_hi = _rim_span(tgt_kind, row, col, h, w)
-    return _rim_sampled(tgt_kind, rho_lo, rho_hi)
+    if _rim_sampled(tgt_kind, rho_lo, rho_hi):
+        return True
+    if tgt_kind != SPHERE or not rho_lo < rho_hi <= RIM_SHORT_REACH:
+        return False
+    a0, a1, b0, b1 = _disc_square(row, col, h, w)
+    radial = _rim_radial(tgt_kind, tgt_axes, rho_lo, rho_hi, _disc_angle(a0, a1, b0, b1), rotation, src_kind,
+                         src_axes, src_h, src_w)
+    return radial > RIM_SHORT * k_max * _pair_spacing(src_kind, tgt_kind)
 
 
 # Compiled apart and without the kernels' fastmath (numba passes a caller's fastmath on to a callee that does not
 # set its own): the band areas are differences of nearly equal areas, and the rows' places differences of nearly
 # equal terms, which the fast-math rewrites spoiled (the weights summed 3 % over the pixel's area).
 @njit(cache=True, error_model="numpy", fastmath=False)
-def _rim_subsamples(tgt_kind, tgt_axes, row, col, h, w, rotation, src_kind, src_axes, src_h, src_w, pfs, pxs, pys,
-                    pws):  # pragma: no cover - compiled
+def _rim_subsamples(tgt_kind, tgt_axes, row, col, h, w, rotation, src_kind, src_axes, src_h, src_w, k_max, pfs, pxs,
+                    pys, pws):  # pragma: no cover - compiled
     """A disc's pixel by its rim (a mirror ball's or an angular map's: ``tgt_kind``) as subsamples in (ρ, α) — ρ
     from the rim direction, α round the image centre — or (0, 0.0) where :func:`_rim_sampled` leaves it to the
     plain cells. Rows at the middles of even steps of ρ; each row
     weighs the pixel's exact share of its ring's image area times the ring's solid angle per area
     (:func:`_ring_density`), spread evenly over the row's arc inside the pixel, cut exactly at the pixel's edges;
-    rows and subsamples :data:`RIM_SPACING` source pixels apart, thinned to fit the scratch (``pfs``) held."""
-    rho_lo, rho_hi = _rim_span(tgt_kind, row, col, h, w)
-    if not _rim_sampled(tgt_kind, rho_lo, rho_hi):
+    rows and subsamples :func:`_rim_spacing` source pixels apart, thinned to fit the scratch (``pfs``) held."""
+    if not _rim_polar(tgt_kind, tgt_axes, row, col, h, w, rotation, src_kind, src_axes, src_h, src_w, k_max):
         return 0, 0.0
+    rho_lo, rho_hi = _rim_span(tgt_kind, row, col, h, w)
     a0, a1, b0, b1 = _disc_square(row, col, h, w)
-    centre = math.atan2(0.5 * (b0 + b1), 0.5 * (a0 + a1))
+    centre = _disc_angle(a0, a1, b0, b1)
     lo, hi = 0.0, 0.0
     for i in range(4):
         d = _wrapped_angle(math.atan2(b0 if i < 2 else b1, a0 if i % 2 == 0 else a1) - centre)
         lo, hi = min(lo, d), max(hi, d)
     span = rho_hi - rho_lo
-    u0, v0 = _rim_point(tgt_kind, rho_lo + 0.25 * span, centre)  # the source pixels the footprint spans, radially
-    u1, v1 = _rim_point(tgt_kind, rho_lo + 0.75 * span, centre)
-    radial = 2.0 * _source_step(tgt_kind, tgt_axes, 0, u0, v0, u1, v1, rotation, src_kind, src_axes, src_h, src_w)
+    radial = _rim_radial(tgt_kind, tgt_axes, rho_lo, rho_hi, centre, rotation, src_kind, src_axes, src_h, src_w)
     u0, v0 = _rim_point(tgt_kind, rho_hi, centre + 0.25 * (hi - lo) + lo)  # and round its widest arc
     u1, v1 = _rim_point(tgt_kind, rho_hi, centre + 0.75 * (hi - lo) + lo)
     round_ = 2.0 * _source_step(tgt_kind, tgt_axes, 0, u0, v0, u1, v1, rotation, src_kind, src_axes, src_h, src_w)
     budget = pfs.shape[0] - 1  # a row's arc may fall in pieces, each rounded up: a subsample more each
     rows_budget = 3 * budget // 4  # the rest for split bands
-    spacing = RIM_SPACING
+    spacing = _rim_spacing(tgt_kind)
     while True:  # wider apart both ways where the scratch is short (a ball of 512's rim pixels from a 1024 lat-long:
         #          rows thinned alone left one subsample a row, 0.26 % off by the ring's inner edge; this, 0.18 %)
         rows = max(2, int(math.ceil(radial / spacing)))
@@ -1034,16 +1114,16 @@ def _arc_samples(tgt_kind, rho, area, per_row, a0, a1, b0, b1, centre, cuts, m, 
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, rates, rotation, src_kind, src_axes, src_h, src_w, pfs, pxs,
-                pys, pws, polar_rim=False):  # pragma: no cover - compiled
+                pys, pws, rim_k_max=0):  # pragma: no cover - compiled
     """One target pixel's subsamples — ku × kv, its cells graded towards its neighbours' rates (:func:`_graded`);
     ``rates`` = (ku, kv, ku left, ku right, kv above, kv below) (:func:`_pixel_rates`, or k six times): their
     source positions (pfs, pxs, pys) and weights ``dω/(du dv)`` × cell area (pws), those off a disc left out;
     returns (count, Σ weights). A disc's rim pixel with every subsample off the disc gets its centre's (rim)
-    direction, weight 1. With ``polar_rim`` (the rate automatic), a mirror ball's or an angular map's pixels by
-    its rim are sampled round its rim direction (:func:`_rim_subsamples`)."""
-    if polar_rim and (tgt_kind == SPHERE or tgt_kind == ANGULAR):
-        n, wsum = _rim_subsamples(tgt_kind, tgt_axes, row, col, h, w, rotation, src_kind, src_axes, src_h, src_w, pfs,
-                                  pxs, pys, pws)
+    direction, weight 1. With ``rim_k_max`` (the rate automatic: its k_max, else 0), a mirror ball's or an angular
+    map's pixels by its rim are sampled round its rim direction (:func:`_rim_subsamples`)."""
+    if rim_k_max > 0 and (tgt_kind == SPHERE or tgt_kind == ANGULAR):
+        n, wsum = _rim_subsamples(tgt_kind, tgt_axes, row, col, h, w, rotation, src_kind, src_axes, src_h, src_w,
+                                  rim_k_max, pfs, pxs, pys, pws)
         if n > 0:
             return n, wsum
     ku, kv, left, right, above, below = rates
@@ -1093,8 +1173,8 @@ SOURCE_RIM_CLOSE = 2.0  # pixel sides from the rim direction within which a pixe
 SOURCE_RIM_EDGE_POINTS = 16  # points along each edge of a target pixel where its span in (ρ, α) is measured
 SOURCE_RIM_MARGIN = 0.05  # of that span, added each way (an edge bulges between the points)
 SOURCE_RIM_MAX_SAMPLES = 1 << 22  # lookups a pixel, at most: spaced wider past it
-SOURCE_RIM_SPACING = RIM_SPACING  # source pixels between rows and lookups (at 0.5 the flows of mirror ball 1024 →
-#                                   angular 256 hit their cap: 6 % off at 10–25°; ~15 % faster)
+SOURCE_RIM_SPACING = 0.25  # source pixels between rows and lookups (at 0.5 the flows of mirror ball 1024 →
+#                           angular 256 hit their cap: 6 % off at 10–25°; ~15 % faster)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -1386,13 +1466,13 @@ def resample_into(src_kind, src, valid, levels, reduced, row_offsets, caps, src_
                 for c in range(3):
                     out[line - first, col, c] = 0.0
                 continue
-            here = _pixel_rates(rates, tgt_kind, row, col, h, w, k, k_max)
+            here = _pixel_rates(rates, src_kind, tgt_kind, row, col, h, w, k, k_max)
             if not (_source_rim_marked(rates, row, col, k, k_max)
                     and _source_rim_value(src_kind, src, valid, src_axes, src_h, src_w, tgt_kind, tgt_axes, face,
                                           row, col, h, w, rotation, pfs, pxs, pys, pws, wx, wy, value, acc)):
                 _pixel(src_kind, src, valid, levels, reduced, row_offsets, caps, src_axes, src_h, src_w, tgt_kind,
                        tgt_axes, face, row, col, h, w, here, rotation, pfs, pxs, pys, pws, wx, wy, value, tile,
-                       scratch, acc, k_max > k)
+                       scratch, acc, k_max if k_max > k else 0)
             for c in range(3):
                 out[line - first, col, c] = acc[c]
 
@@ -1400,11 +1480,11 @@ def resample_into(src_kind, src, valid, levels, reduced, row_offsets, caps, src_
 @njit(cache=True, inline="always", error_model="numpy")
 def _pixel(src_kind, src, valid, levels, reduced, row_offsets, caps, src_axes, src_h, src_w, tgt_kind, tgt_axes,
            face, row, col, h, w, rates, rotation, pfs, pxs, pys, pws, wx, wy, value, tile, scratch,
-           acc, polar_rim):  # pragma: no cover - compiled
+           acc, rim_k_max):  # pragma: no cover - compiled
     """``acc`` = the value of target pixel (face, row, col) of an h × w face at ``rates``
-    (:func:`_subsamples`, ``polar_rim`` as there; :func:`resample_into`'s arguments; the rest is scratch)."""
+    (:func:`_subsamples`, ``rim_k_max`` as there; :func:`resample_into`'s arguments; the rest is scratch)."""
     n, wsum = _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, rates, rotation, src_kind, src_axes, src_h,
-                          src_w, pfs, pxs, pys, pws, polar_rim)
+                          src_w, pfs, pxs, pys, pws, rim_k_max)
     acc[0], acc[1], acc[2] = 0.0, 0.0, 0.0
     tiled = src_kind == LATLONG or src_kind == CUBE  # sources whose taps are all valid (no renormalisation)
     if not (tiled and _same_face(pfs, n)
@@ -1627,9 +1707,9 @@ def _pixel_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, caps
                 tgt_axes, h, w, k, k_max, rotation, face, row, col, rates, pfs, pxs, pys, pws, tile, scratch, wx, wy,
                 idx, wts):  # pragma: no cover - compiled
     """One target pixel's taps into ``idx``/``wts`` (its row of the rates already in ``rates``); returns how many."""
-    here = _pixel_rates(rates, tgt_kind, row, col, h, w, k, k_max)
+    here = _pixel_rates(rates, src_kind, tgt_kind, row, col, h, w, k, k_max)
     n, wsum = _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, here, rotation, src_kind, src_axes,
-                          src_h, src_w, pfs, pxs, pys, pws, k_max > k)
+                          src_h, src_w, pfs, pxs, pys, pws, k_max if k_max > k else 0)
     scale = 1.0 / wsum
     t = -1
     if (src_kind == LATLONG or src_kind == CUBE) and _same_face(pfs, n):

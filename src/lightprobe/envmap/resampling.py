@@ -781,8 +781,12 @@ _FLUX_CACHE_BYTES = 256 << 20  # the corrections a process keeps (a batch conver
 # mid-ball (1024×512 → 817, the default size, 0.33 %), at an angular map's rim direction (2048×1024 → 1634, 0.34 %):
 # corrected, each is exact. It costs 2.4× the conversion the first time (2048×1024 → mirror ball 512–1024, 1.1–1.5 s
 # → 2.7–3.6 s; then the weights are cached) and ~130 B a source pixel while it is made (+270 MB at 2048×1024). A 4k
-# lat-long's correction would hold more than convert may (tests/test_limits.py: 3× the map): there it is not made,
-# and those figures stand (4096×2048 → mirror ball 1024, 0.41 % 2–10° from its rim direction).
+# lat-long's correction would hold more than convert may (tests/test_limits.py: 3× the map): there it is not made.
+# Its rows alone hold the bar into a mirror ball since lookups are 0.35 source pixels apart there
+# (fused.LATLONG_SPHERE_SPACING), a side may take more than k_max where the other needs fewer (fused._within_budget)
+# and the ball's long ring pixels are read round its rim direction (fused._rim_polar): 4096×2048 → mirror ball 1024
+# 0.16 % (was 0.41 %), → 3268, its default size, 0.12 % (0.30 %). Not at an angular map's rim direction: → angular
+# 3268 0.26 % (0.33 %).
 LATLONG_FLUX_MAX_PIXELS = 1 << 21
 
 
