@@ -104,14 +104,14 @@ def _read_polar(src, levels, reduced, row_offsets, h, w, r0, th, tile, scratch, 
     """:func:`_read_plain` for a tile of per-row frames (:func:`lightprobe.envmap.fused._polar_tile`); False,
     touching nothing, if ``shift`` is not a whole number of a reduced row's columns."""
     for ty in range(th):
-        level = _row_frame(levels, h, w, r0 + ty)[1]
-        if (shift >> level) << level != shift:
+        width = _row_frame(levels, h, w, r0 + ty)[2]
+        if (shift * width) % w != 0:  # not whole reduced columns (2^ℓ source columns each, or w / width)
             return False
     c0s, tws = scratch[0], scratch[1]
     r, g, b = 0.0, 0.0, 0.0
     for ty in range(th):
         row, level, width, _ = _row_frame(levels, h, w, r0 + ty)
-        moved = shift >> level
+        moved = shift * width // w
         for tx in range(tws[ty]):
             col = _wrapped_column(c0s[ty] + tx, width)
             if mirror:

@@ -258,7 +258,7 @@ def _lookup_latlong(src, levels, reduced, offsets, x, y, wx, wy, acc):  # pragma
     wy[0], wy[1], wy[2], wy[3] = _pole_rows4(r0, h, wy[0], wy[1], wy[2], wy[3])
     for dy in range(4):
         row, level, width, shift = _row_frame(levels, h, w, r0 + dy)
-        xr = _in_frame(x, level, shift)
+        xr = _in_frame(x, level, width, w, shift)
         fx = math.floor(xr)
         _bspline_weights(xr - fx, wx)
         c0 = int(fx) - 1
@@ -352,12 +352,19 @@ def _sum_into_tile(tile, pxs, pys, pws, n, scale, c0, r0, tw, th, pad):  # pragm
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _in_frame(x, level, shift):  # pragma: no cover - compiled
-    """Source column coordinate x (column c's centre at c) in a row's frame: its reduction level (a frame column
-    is 2^ℓ source columns) and half-turn shift."""
+def _in_frame(x, level, width, w, shift):  # pragma: no cover - compiled
+    """Source column coordinate x (column c's centre at c) in a row's frame: its reduction level, to ``width``
+    columns of the source's ``w`` (a frame column is w / width source columns: 2^ℓ, the same bits as before
+    where that is whole, or not, :func:`lightprobe.envmap.polar.reduced_width`), and half-turn shift."""
     if level == 0:
         return x + shift
-    return (x + 0.5) / (1 << level) - 0.5 + shift
+    return (x + 0.5) * (width / w) - 0.5 + shift
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _reduced_width(w, level):  # pragma: no cover - compiled
+    """:func:`lightprobe.envmap.polar.reduced_width`, compiled: W / 2^ℓ, rounded where it is not whole."""
+    return (w + ((1 << level) >> 1)) >> level
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -366,7 +373,7 @@ def _row_frame(levels, h, w, row):  # pragma: no cover - compiled
     its width when the row is reached across the pole — a half column where the width is odd)."""
     src_row, turned = _reflected_row(row, h)
     level = levels[src_row]
-    width = w >> level
+    width = _reduced_width(w, level)
     return src_row, level, width, 0.5 * width if turned else 0.0
 
 
@@ -384,9 +391,9 @@ def _row_tile(levels, h, w, pxs, pys, pws, n, scale, r0, th, tile, c0s, tws, tap
         last_level, last_shift, q = -1, -1.0, 0.0
         for dy in range(4):
             ty = fy - 1 + dy - r0
-            _, level, _, shift = _row_frame(levels, h, w, fy - 1 + dy)
+            _, level, width, shift = _row_frame(levels, h, w, fy - 1 + dy)
             if level != last_level or shift != last_shift:  # most rows share their neighbour's frame
-                q = _in_frame(pxs[s], level, shift)
+                q = _in_frame(pxs[s], level, width, w, shift)
                 last_level, last_shift = level, shift
             fx = math.floor(q)
             taps[s, dy, 0], taps[s, dy, 1] = fx, q - fx
@@ -1527,7 +1534,7 @@ def _latlong_taps(levels, row_offsets, h, w, x, r0, wy, q, wx, idx, wts, t):  # 
     weight ``q`` each, stored from ``t``; returns the next free slot."""
     for dy in range(4):
         row, level, width, shift = _row_frame(levels, h, w, r0 + dy)
-        xr = _in_frame(x, level, shift)
+        xr = _in_frame(x, level, width, w, shift)
         fx = math.floor(xr)
         _bspline_weights(xr - fx, wx)
         for dx in range(4):

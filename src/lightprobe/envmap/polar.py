@@ -5,8 +5,9 @@ them — at the pole, all. Its k×k lookups then land several columns apart, and
 sun) is hit or missed by chance: ∫L dω was off by 0.3–0.7 % at 20° from the pole and by up to 88 % at the pole row.
 
 The cure is the source's, not the target's: every row whose lookups land more than :data:`MAX_SPACING` columns
-apart is read from its box reduction in azimuth — 2^ℓ neighbouring columns averaged, W / 2^ℓ pixels left — with ℓ
-the least that brings the lookups within :data:`MAX_SPACING` reduced columns. All pixels of a row have the same
+apart is read from its box reduction in azimuth — 2^ℓ neighbouring columns averaged, W / 2^ℓ pixels left (past a
+width's last whole halving, W / 2^ℓ rounded, each the mean of the columns it overlaps) — with ℓ the least that
+brings the lookups within :data:`MAX_SPACING` reduced columns. All pixels of a row have the same
 solid angle, so the reduction keeps the row's ∫L dω exactly and a uniform row uniform; the kernel interpolates each
 row on its own grid (:func:`lightprobe.envmap.fused._lookup_latlong`). Only rows within the polar caps
 (|cos θ| ≥ :data:`CAP_COS`) are reduced: elsewhere a row is wider than any sane target's pixel, and a mirror ball's
@@ -33,6 +34,12 @@ from . import pole_rows
 MAX_SPACING = 0.5  # source pixels between a pixel's neighbouring lookups, at most (keeps a one-pixel sun to ~0.1 %)
 MAX_SAMPLES = 16  # k×k lookups per target pixel, at most
 CAP_COS = 0.7  # rows with |cos θ| at least this (within ~46° of a pole) may be reduced
+MIN_CELLS = 4  # reduced columns a row keeps at its deepest halving (fewer: read as its mean): the B-spline's
+#               taps. At 8 a turned lat-long target's pole rows kept a sun better (2048×1024 → 194: two rows 0.22 %
+#               off at 4), but a sun 2–4° from the pole was read as its row's mean and moved over a target pixel
+MIN_OVERLAP_CELLS = 8  # the same for a level reduced by overlaps: at 4, a turned cube of 20 from a lat-long of
+#                       1049 rows (read as 131, W = 2 × 131) lost 0.69 % of a sun in its source's pole rows, 2012×1006
+#                       → a turned lat-long of 194 0.31 %; at 8, 0.22 % and 0.19 % (0.20 and 0.19 read as means)
 SAMPLES = 16_000  # target pixels sampled (every stride-th) to measure the lookup spacing
 
 
@@ -44,17 +51,30 @@ def no_reduction(rows: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.
     return np.zeros(rows, np.int64), np.zeros((1, 3), np.float32), np.zeros(rows, np.int64), caps
 
 
+def reduced_width(width: int, level: int) -> int:
+    """Columns of a row of ``width`` reduced to ``level`` ℓ: W / 2^ℓ, rounded to the nearest whole number where it
+    is not one (W = 2 × odd for a lat-long of odd height). Such a row's reduced columns each cover W / W_ℓ source
+    columns — not a whole number — and are the exact means of the columns they overlap
+    (:func:`lightprobe.envmap.overlaps.column_means`)."""
+    return (width + ((1 << level) >> 1)) >> level
+
+
 def max_level(width: int) -> int:
-    """The deepest reduction a row of ``width`` columns allows: whole pairs at every halving, at least 4 columns
-    left (the B-spline's taps). The last width may be odd: a row reached across the pole is read half a turn on,
-    W / 2^(ℓ+1) reduced columns, a fraction the spline takes as it is. Asking that of every width had left a lat-long
-    of odd height (W = 2 × odd) no reduction at all, and its rows by the pole could be read neither reduced nor as
-    their mean: a sun there took +2920 % into a cube of 352 from 746×373, and any lat-long halved to an odd height
-    the same (998 rows → mirror ball 326, +1923 %)."""
+    """The deepest reduction a row of ``width`` columns allows: at least :data:`MIN_CELLS` columns left
+    (:data:`MIN_OVERLAP_CELLS` by overlaps); a row whose lookups want more is read as its mean. Halvings while they leave whole pairs, then reductions by
+    overlaps. Asking whole pairs at every level had left a width of 2^a × odd a halvings: the rows by the poles
+    that wanted more were read as their means, flat in azimuth — a smooth field 1 ± 0.1 there came out up to 0.10
+    off within 12° of the pole (1612×806 → cube 128), 0.058 (3000×1500 → cube 512) — and an odd height none at all
+    before a row's last width could be odd (+2920 % for a sun, 746×373 → cube 352)."""
     level = 0
-    while width % (2 ** (level + 1)) == 0 and width >> (level + 1) >= 4:
+    while reduced_width(width, level + 1) >= (MIN_CELLS if halves_exactly(width, level + 1) else MIN_OVERLAP_CELLS):
         level += 1
     return level
+
+
+def halves_exactly(width: int, level: int) -> bool:
+    """Whether a row of ``width`` reduces to ``level`` by whole pairs (each reduced column 2^ℓ source columns)."""
+    return width % (1 << level) == 0
 
 
 @dataclass(frozen=True)
@@ -187,7 +207,7 @@ def row_layout(levels: np.ndarray, width: int) -> tuple[np.ndarray, np.ndarray, 
     (:mod:`lightprobe.envmap.pole_rows`) — reach: plain footprint tiles stay clear of them."""
     h = levels.size
     levels = kernel_levels(levels, width)
-    widths = np.where(levels > 0, width >> levels, 0)
+    widths = np.where(levels > 0, (width + ((1 << levels) >> 1)) >> levels, 0)  # reduced_width of each
     row_offsets = np.zeros(h, np.int64)
     np.cumsum(widths[:-1], out=row_offsets[1:])
     nonzero = np.nonzero(levels)[0]
@@ -200,22 +220,49 @@ def row_layout(levels: np.ndarray, width: int) -> tuple[np.ndarray, np.ndarray, 
 def reduced_rows(data: np.ndarray, levels: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(levels, reduced, row_offsets, caps) for the kernel: row r of a latlong image (H, W, 3) with level ℓ > 0
     becomes W / 2^ℓ means of 2^ℓ columns at ``reduced[row_offsets[r]:]`` (:func:`row_layout`), by ℓ halvings
-    (each the mean of a pair in float32: ``(a + b) · ½``, the same bits as numpy's ``(x[0::2] + x[1::2]) * ½``).
-    A whole-row level (:func:`polar_levels`) fills its row at max_level with the mean of those W / 2^max_level
-    values (in float64: a uniform row stays exactly uniform); the returned levels are the kernel's."""
+    (each the mean of a pair in float32: ``(a + b) · ½``, the same bits as numpy's ``(x[0::2] + x[1::2]) * ½``) —
+    or, where W / 2^ℓ is not whole, :func:`reduced_width` means of the columns each overlaps (:func:`_overlap_rows`).
+    A whole-row level (:func:`polar_levels`) fills its row at max_level with the mean of those values (in float64:
+    a uniform row stays exactly uniform); the returned levels are the kernel's."""
     h, w = data.shape[:2]
     whole = np.nonzero(levels > max_level(w))[0]
     levels = kernel_levels(levels.astype(np.int64), w)
-    if not levels.any():  # nothing to reduce, or a width with no halving (W/4 not whole: max_level 0)
+    if not levels.any():  # nothing to reduce, or a row too narrow for any (under 2 × MIN_CELLS columns)
         return no_reduction(h)
     row_offsets, caps, total = row_layout(levels, w)
     reduced = np.empty((total, 3), np.float32)
-    _halve_rows(np.ascontiguousarray(data, np.float32), np.nonzero(levels)[0], levels, row_offsets, reduced)
-    width = w >> max_level(w)
+    rows = np.nonzero(levels)[0]
+    exact = np.array([halves_exactly(w, level) for level in levels[rows]], bool)
+    _halve_rows(np.ascontiguousarray(data, np.float32), rows[exact], levels, row_offsets, reduced)
+    _overlap_rows(data, rows[~exact], levels, row_offsets, reduced)
+    width = reduced_width(w, max_level(w))
     for r in whole:  # a few rows at each pole
         row = reduced[row_offsets[r]:row_offsets[r] + width]
         row[:] = row.mean(axis=0, dtype=np.float64).astype(np.float32)
     return levels, reduced, row_offsets, caps
+
+
+def _overlap_rows(data: np.ndarray, rows: np.ndarray, levels: np.ndarray, row_offsets: np.ndarray,
+                  reduced: np.ndarray) -> None:
+    """Rows of ``rows`` whose level does not halve them exactly, reduced by exact overlaps into
+    reduced[row_offsets[r]:] (float64 sums, stored float32): a sparse product per level and band of
+    :data:`_OVERLAP_BAND` rows (a float64 copy of a whole cap of a 4k map would be ~100 MB)."""
+    from .overlaps import column_means
+
+    w = data.shape[1]
+    for level in np.unique(levels[rows]):
+        cells = reduced_width(w, int(level))
+        means = column_means(w, cells)
+        mine = rows[levels[rows] == level]
+        for start in range(0, len(mine), _OVERLAP_BAND):
+            band = mine[start:start + _OVERLAP_BAND]
+            part = means @ np.asarray(data[band], np.float64).transpose(1, 0, 2).reshape(w, -1)
+            part = part.reshape(cells, len(band), 3).astype(np.float32)
+            for i, r in enumerate(band):
+                reduced[row_offsets[r]:row_offsets[r] + cells] = part[:, i]
+
+
+_OVERLAP_BAND = 64
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -17,6 +17,7 @@ from ..limits import check_memory, check_pixels
 from ..progress import track
 from . import balance, cube_symmetry, flux, fused, polar, pole_rows, separable
 from .map import EnvMap, owned, pixel_directions, pixel_solid_angles
+from .overlaps import column_means, interval_overlaps
 
 _CHUNK_SAMPLES = 1 << 18  # direction lookups per chunk of a resampling pass (bounds memory to ~100 MB)
 MAX_FOOTPRINT_RATIO = 16  # source pixels per target pixel above which the source is box-reduced first
@@ -133,26 +134,9 @@ def _odd_halving_overlaps(grid: tuple[int, int]):
     column j and old column c share, for a lat-long of ``grid`` onto ⌊H/2⌋ rows."""
     h, w = grid
     half = h // 2
-    return (_overlaps(-np.cos(np.pi * np.arange(h + 1) / h),  # −cos θ: increasing down the rows
+    return (interval_overlaps(-np.cos(np.pi * np.arange(h + 1) / h),  # −cos θ: increasing down the rows
                       -np.cos(np.pi * np.arange(half + 1) / half)),
-            _overlaps(np.arange(w + 1) * (2 * np.pi / w), np.arange(2 * half + 1) * (np.pi / half)))
-
-
-def _overlaps(old_edges: np.ndarray, new_edges: np.ndarray):
-    """Sparse (new, old): the lengths of the intersections of two partitions of one interval, from their increasing
-    edges (each new cell's few old cells only: a dense table of a 4k map's columns was 2 GB)."""
-    from scipy import sparse
-
-    n_old = len(old_edges) - 1
-    first = np.clip(np.searchsorted(old_edges, new_edges[:-1], side="right") - 1, 0, n_old - 1)
-    last = np.searchsorted(old_edges, new_edges[1:], side="left")  # one past the last old cell each new one meets
-    old = first[:, None] + np.arange(int((last - first).max()))[None, :]
-    inside = old < n_old
-    old = np.minimum(old, n_old - 1)
-    length = np.minimum(new_edges[1:, None], old_edges[old + 1]) - np.maximum(new_edges[:-1, None], old_edges[old])
-    length = np.where(inside, np.maximum(length, 0.0), 0.0)
-    new = np.repeat(np.arange(len(new_edges) - 1), old.shape[1])
-    return sparse.csr_matrix((length.ravel(), (new, old.ravel())), shape=(len(new_edges) - 1, n_old))
+            interval_overlaps(np.arange(w + 1) * (2 * np.pi / w), np.arange(2 * half + 1) * (np.pi / half)))
 
 
 def resample(
@@ -942,7 +926,7 @@ def _raw_pixel_delivery(per_texel: np.ndarray, layout: Layout, grid: tuple[int, 
 
 def _unreduced(total: np.ndarray, grid: tuple[int, ...], found: np.ndarray | None) -> np.ndarray:
     """Per source pixel (flat) from per tap index: a tap on a lat-long's reduced polar row is handed on to the
-    source pixels it averages (2^ℓ of them, or the whole row)."""
+    source pixels it averages (2^ℓ of them, the columns it overlaps by their shares, or the whole row)."""
     n_src = math.prod(grid)
     delivered = total[:n_src].copy()
     if found is None:
@@ -953,12 +937,14 @@ def _unreduced(total: np.ndarray, grid: tuple[int, ...], found: np.ndarray | Non
     reduced = total[n_src:]
     rows = delivered.reshape(h, w)
     for r in np.nonzero(levels)[0]:
-        n = w >> levels[r]
+        n = polar.reduced_width(w, int(levels[r]))
         part = reduced[row_offsets[r]:row_offsets[r] + n]
         if found[r] > polar.max_level(w):  # read as the whole row's mean
             rows[r] += part.sum() / w
-        else:
+        elif polar.halves_exactly(w, int(levels[r])):
             rows[r] += np.repeat(part / (w // n), w // n)
+        else:  # the overlaps' transpose: each column's share of every cell it meets
+            rows[r] += column_means(w, n).T @ part
     return delivered
 
 
