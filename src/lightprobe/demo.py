@@ -180,7 +180,8 @@ def section_speed(rep: Report) -> str:
               "a row is reduced by exact overlaps (each reduced column the mean of the columns it covers, by their "
               "shares). Such rows used to be read as their whole row's mean, flat in azimuth: a smooth field "
               "L = 1 + ½ x (1 ± 0.1 within 12° of a pole) into a cube of 128 came out up to 0.10 off there from "
-              "806 and 805 rows, 0.058 from 1000 (and into a cube of 512 0.058 from 3000×1500, 0.028 from 6000×3000). Worst |error| within 12° of the poles now:</p>"
+              "806 and 805 rows, 0.058 from 1000 (and into a cube of 512 0.058 from 3000×1500, 0.028 from "
+              "6000×3000). Worst |error| within 12° of the poles now:</p>"
             + table(["source", *pole_detail], [["error", *(f"{e:.4f}" for e in pole_detail.values())]])
             + "<p>In the first row (within 180°/H of the pole) the plain cubic B-spline reflected across the "
               "pole weighs a row 1.25× its own solid angle; near the poles its weights are made rational, so "

@@ -649,16 +649,16 @@ def _from_cube_vertex(tgt_kind, tgt_axes, face, u, v, rotation, src_axes, src_h,
 @njit(cache=True, error_model="numpy")  # not inlined: four more copies of the layouts' formulas tripled the compile
 def _rates(tgt_kind, tgt_axes, face, row, col, h, w, k, k_max, rotation, src_kind, src_axes, src_h,
            src_w):  # pragma: no cover - compiled
-    """(ku, kv): one target pixel's subsamples across and down — k each, raised up to ``k_max`` until
-    neighbouring lookups land at most :data:`ADAPTIVE_SPACING` source pixels apart (:func:`_pair_spacing`). The steps are measured over
-    the pixel's middle half (it stays inside its face and its disc). Where a disc's rim stretches one direction
-    over a ring, a pixel's footprint in the other layout is many pixels long one way, and a cube's corner texels
-    are a fifth of its centre's: with one rate for the whole map, a sun in such a pixel was hit or missed — ±15 %
-    from an angular map into a lat-long, 74 % from a mirror ball into an angular map (pixels 90–155° from the
-    camera's axis), 7 % from a cube's corner texel into a lat-long (``Resampler.energy_gains``, every pixel).
-    Where the rate changes between neighbouring pixels, :func:`_graded` warps the cells so the spacing does not
-    jump. A lat-long target's rows ramp up to k_max at its poles (:data:`POLE_RAMP`), and the pixels round a cube
-    source's vertices up to k_max (:data:`CUBE_VERTEX_REACH`)."""
+    """(ku, kv): one target pixel's subsamples across and down — k each, raised up to ``k_max`` until neighbouring
+    lookups land at most :data:`ADAPTIVE_SPACING` source pixels apart (:func:`_pair_spacing`). The steps are
+    measured over the pixel's middle half (it stays inside its face and its disc). Where a disc's rim stretches one
+    direction over a ring, a pixel's footprint in the other layout is many pixels long one way, and a cube's corner
+    texels are a fifth of its centre's: with one rate for the whole map, a sun in such a pixel was hit or missed —
+    ±15 % from an angular map into a lat-long, 74 % from a mirror ball into an angular map (pixels 90–155° from the
+    camera's axis), 7 % from a cube's corner texel into a lat-long (``Resampler.energy_gains``, every pixel). Where
+    the rate changes between neighbouring pixels, :func:`_graded` warps the cells so the spacing does not jump. A
+    lat-long target's rows ramp up to k_max at its poles (:data:`POLE_RAMP`), and the pixels round a cube source's
+    vertices up to k_max (:data:`CUBE_VERTEX_REACH`)."""
     uc, vc = (col + 0.5) / w, (row + 0.5) / h
     across = 2.0 * _source_step(tgt_kind, tgt_axes, face, (col + 0.25) / w, vc, (col + 0.75) / w, vc, rotation,
                                 src_kind, src_axes, src_h, src_w)
@@ -793,7 +793,6 @@ def _pixel_rates(rates, src_kind, tgt_kind, row, col, h, w, k, k_max):  # pragma
 # the rim direction instead (:func:`_rim_subsamples`).
 RIM_POLAR_SPAN = 2.0
 RIM_MARK = -1  # in the rates buffer: a pixel sampled round the rim direction
-RIM_EDGE = 3  # a plain neighbour's end cells at its edge: 2/(k + 3k), half a cell (see _pixel_rates)
 RIM_R = 1.0 - 1e-12  # the image radius of the rim direction as sampled: a hair inside the disc
 RIM_SPLIT = 8  # sub-rows of a ring band that the pixel's edge cuts along its length
 RIM_SPACING = 0.25  # source pixels between a rim pixel's rows and its subsamples along a row (at 0.5: 0.36 % by the
@@ -986,7 +985,7 @@ def _rim_polar(tgt_kind, tgt_axes, row, col, h, w, rotation, src_kind, src_axes,
 def _rim_subsamples(tgt_kind, tgt_axes, row, col, h, w, rotation, src_kind, src_axes, src_h, src_w, k_max, pfs, pxs,
                     pys, pws):  # pragma: no cover - compiled
     """A disc's pixel by its rim (a mirror ball's or an angular map's: ``tgt_kind``) as subsamples in (ρ, α) — ρ
-    from the rim direction, α round the image centre — or (0, 0.0) where :func:`_rim_sampled` leaves it to the
+    from the rim direction, α round the image centre — or (0, 0.0) where :func:`_rim_polar` leaves it to the
     plain cells. Rows at the middles of even steps of ρ; each row
     weighs the pixel's exact share of its ring's image area times the ring's solid angle per area
     (:func:`_ring_density`), spread evenly over the row's arc inside the pixel, cut exactly at the pixel's edges;

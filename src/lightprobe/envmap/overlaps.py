@@ -8,6 +8,8 @@ _odd_box_reduce`), a polar row of W = 2 × odd columns reduced to W / 2^ℓ roun
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 
@@ -28,8 +30,10 @@ def interval_overlaps(old_edges: np.ndarray, new_edges: np.ndarray):
     return sparse.csr_matrix((length.ravel(), (new, old.ravel())), shape=(len(new_edges) - 1, n_old))
 
 
+@functools.lru_cache(maxsize=32)
 def column_means(width: int, cells: int):
-    """Sparse (cells, width) CSR: row j holds the weights that make reduced cell j of a periodic row of ``width``
+    """Sparse (cells, width) CSR (kept for the last few widths: every row of a level, and every map of a batch,
+    shares it; read-only by use): row j holds the weights that make reduced cell j of a periodic row of ``width``
     columns, reduced to ``cells`` equal cells, the mean of the columns it overlaps (each weight the share of the
     column it covers over the cell's width in columns; every column's weights sum to cells / width)."""
     overlaps = interval_overlaps(np.arange(width + 1, dtype=np.float64), np.arange(cells + 1) * (width / cells))

@@ -51,21 +51,21 @@ def no_reduction(rows: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.
     return np.zeros(rows, np.int64), np.zeros((1, 3), np.float32), np.zeros(rows, np.int64), caps
 
 
-def reduced_width(width: int, level: int) -> int:
-    """Columns of a row of ``width`` reduced to ``level`` ℓ: W / 2^ℓ, rounded to the nearest whole number where it
-    is not one (W = 2 × odd for a lat-long of odd height). Such a row's reduced columns each cover W / W_ℓ source
-    columns — not a whole number — and are the exact means of the columns they overlap
-    (:func:`lightprobe.envmap.overlaps.column_means`)."""
+def reduced_width(width: int, level):
+    """Columns of a row of ``width`` reduced to ``level`` ℓ (an int, or an array of them): W / 2^ℓ, rounded to the
+    nearest whole number where it is not one (W = 2 × odd for a lat-long of odd height). Such a row's reduced
+    columns each cover W / W_ℓ source columns — not a whole number — and are the exact means of the columns they
+    overlap (:func:`lightprobe.envmap.overlaps.column_means`)."""
     return (width + ((1 << level) >> 1)) >> level
 
 
 def max_level(width: int) -> int:
     """The deepest reduction a row of ``width`` columns allows: at least :data:`MIN_CELLS` columns left
-    (:data:`MIN_OVERLAP_CELLS` by overlaps); a row whose lookups want more is read as its mean. Halvings while they leave whole pairs, then reductions by
-    overlaps. Asking whole pairs at every level had left a width of 2^a × odd a halvings: the rows by the poles
-    that wanted more were read as their means, flat in azimuth — a smooth field 1 ± 0.1 there came out up to 0.10
-    off within 12° of the pole (1612×806 → cube 128), 0.058 (3000×1500 → cube 512) — and an odd height none at all
-    before a row's last width could be odd (+2920 % for a sun, 746×373 → cube 352)."""
+    (:data:`MIN_OVERLAP_CELLS` by overlaps); a row whose lookups want more is read as its mean. Halvings while they
+    leave whole pairs, then reductions by overlaps. Asking whole pairs at every level had left a width of 2^a × odd
+    a halvings: the rows by the poles that wanted more were read as their means, flat in azimuth — a smooth field 1
+    ± 0.1 there came out up to 0.10 off within 12° of the pole (1612×806 → cube 128), 0.058 (3000×1500 → cube 512) —
+    and an odd height none at all before a row's last width could be odd (+2920 % for a sun, 746×373 → cube 352)."""
     level = 0
     while reduced_width(width, level + 1) >= (MIN_CELLS if halves_exactly(width, level + 1) else MIN_OVERLAP_CELLS):
         level += 1
@@ -207,7 +207,7 @@ def row_layout(levels: np.ndarray, width: int) -> tuple[np.ndarray, np.ndarray, 
     (:mod:`lightprobe.envmap.pole_rows`) — reach: plain footprint tiles stay clear of them."""
     h = levels.size
     levels = kernel_levels(levels, width)
-    widths = np.where(levels > 0, (width + ((1 << levels) >> 1)) >> levels, 0)  # reduced_width of each
+    widths = np.where(levels > 0, reduced_width(width, levels), 0)
     row_offsets = np.zeros(h, np.int64)
     np.cumsum(widths[:-1], out=row_offsets[1:])
     nonzero = np.nonzero(levels)[0]
