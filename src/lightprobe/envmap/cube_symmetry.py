@@ -24,8 +24,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..jit import njit
-from .fused import (CUBE, LATLONG, TILE, _polar_tile, _row_frame, _subsamples, _sum_into_tile, _tile_bounds, atan2,
-                    _wrapped_column, pixel_into)
+from .fused import (CUBE, LATLONG, TILE, _cube_edge_terms, _polar_tile, _row_frame, _subsamples, _sum_into_tile,
+                    _tile_bounds, atan2, _wrapped_column, pixel_into, slots)
 
 # The side faces as images of −Z (face 5) under quarter turns of yaw: (face, turns); a turn is +W/4 columns.
 SIDE_FACES = np.array([[5, 0], [0, 1], [4, 2], [1, 3]], dtype=np.int64)
@@ -137,8 +137,9 @@ def _read_polar(src, levels, reduced, row_offsets, h, w, r0, th, tile, scratch, 
 def _scratch(k):  # pragma: no cover - compiled
     """Per-call scratch: subsamples (faces, columns, rows, weights), the tile and its per-row frames, lookups, and
     the identity turn and all-valid table the general path takes (made once a call, not once a pixel)."""
-    return ((np.empty(k * k + 1, np.int64), np.empty(k * k + 1), np.empty(k * k + 1), np.empty(k * k + 1)),
-            np.empty((TILE, TILE)), (np.empty(TILE, np.int64), np.empty(TILE, np.int64), np.empty((k * k + 1, 4, 2))),
+    m = slots(k)
+    return ((np.empty(m, np.int64), np.empty(m), np.empty(m), np.empty(m)),
+            np.empty((TILE, TILE)), (np.empty(TILE, np.int64), np.empty(TILE, np.int64), np.empty((m, 4, 2))),
             (np.empty(4), np.empty(4), np.empty(3), np.empty(3)), (np.eye(3), np.ones((1, 1, 1), np.float32)))
 
 
@@ -159,9 +160,10 @@ def _back_columns(n, k, w):  # pragma: no cover - compiled
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _back_subsamples(row, col, n, k, h, columns, pfs, pxs, pys, pws):  # pragma: no cover - compiled
+def _back_subsamples(row, col, n, k, h, w, columns, eye, latlong, pfs, pxs, pys, pws):  # pragma: no cover - compiled
     """:func:`lightprobe.envmap.fused._subsamples` for a pixel of the −Z face into an unturned lat-long, the
-    azimuths from :func:`_back_columns`: one atan2 a subsample instead of two, the same values and order."""
+    azimuths from :func:`_back_columns`: one atan2 a subsample instead of two, the same values and order (the
+    edge terms too, :func:`lightprobe.envmap.fused._cube_edge_terms`)."""
     m, wsum = 0, 0.0
     for j in range(k):
         t = 2.0 * ((row + (j + 0.5) / k) / n) - 1.0
@@ -173,7 +175,8 @@ def _back_subsamples(row, col, n, k, h, columns, pfs, pxs, pys, pws):  # pragma:
             pws[m] = 4.0 / (r * np.sqrt(r))
             wsum += pws[m]
             m += 1
-    return m, wsum
+    return _cube_edge_terms(eye, BACK, row, col, n, n, (k, k, k, k, k, k), eye, latlong, eye, h, w, pfs, pxs, pys,
+                            pws, m, wsum)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -185,7 +188,7 @@ def _orbit(src, levels, reduced, row_offsets, caps, n, k, kinds, base, row, col,
     (pfs, pxs, pys, pws), tile, scratch, (wx, wy, acc, value), (eye, valid) = work  # valid: every tap (lat-long)
     latlong, cube = kinds[0], kinds[1]
     if base == BACK:
-        taps, wsum = _back_subsamples(row, col, n, k, h, columns, pfs, pxs, pys, pws)
+        taps, wsum = _back_subsamples(row, col, n, k, h, w, columns, eye, latlong, pfs, pxs, pys, pws)
     else:
         taps, wsum = _subsamples(cube, eye, base, row, col, n, n, (k, k, k, k, k, k), eye, latlong, eye, h, w, pfs,
                                  pxs, pys, pws)

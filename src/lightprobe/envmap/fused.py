@@ -438,7 +438,7 @@ def _wrapped_column(col, width):  # pragma: no cover - compiled
 @njit(cache=True, error_model="numpy")
 def _polar_scratch(k):  # pragma: no cover - compiled
     """Scratch arrays for :func:`_row_tile`: each tile row's first column and width, each subsample's taps."""
-    return np.empty(TILE, np.int64), np.empty(TILE, np.int64), np.empty((k * k + 1, 4, 2))
+    return np.empty(TILE, np.int64), np.empty(TILE, np.int64), np.empty((slots(k), 4, 2))
 
 
 @njit(cache=True, error_model="numpy")
@@ -555,6 +555,8 @@ def _lookup(src_kind, src, valid, levels, reduced, row_offsets, face, px, py, wx
 # Euler–Maclaurin end term, 1/(12 kv²) of the row — a sun at the pole came out +0.9–1.4 % from cube, angular and
 # mirror-ball sources at kv = k. A pole row takes k_max subsample rows, and each row away POLE_RAMP fewer down to its
 # own rate: a gentle ramp, as a sudden change of spacing between two rows costs the same end term at their seam.
+# The pole rows' cells now vanish at the pole (POLE), which takes that term away whatever kv is; the ramp was kept
+# (not measured without it since).
 POLE_RAMP = 2
 ADAPTIVE_SPACING = 0.5  # source pixels between neighbouring lookups, at most, where the rate adapts (polar.MAX_SPACING)
 # From a lat-long into an angular map the midpoint rule at 0.5 left a ring of moiré (the two grids beating, ~40° from
@@ -700,6 +702,15 @@ def _within_budget(ku, kv, k_max):  # pragma: no cover - compiled
     return ku, min(kv, budget // ku)
 
 
+# A lat-long target's pole rows meet at the pole, where dω = sin θ dθ dφ: along θ a row's integrand g = B sin θ starts
+# at 0 with slope B(pole), and the midpoint rule over it is off by the Euler–Maclaurin end term h²/24 · B(pole) per
+# unit of φ — a one-pixel sun on a turned lat-long's pole came out +0.48 % (lat-long 805 rows → 246, k_max = 16),
+# 1/k² in the rate. With the cells warped so their width vanishes at the pole (φ(t) = 2t² − t³ from that end),
+# the sum is the midpoint rule of G(t) = g(φ(t)) φ'(t), whose slope at the pole is 0: the end term goes, the next is
+# O(h⁴). In _graded's neighbour rates, POLE stands for that end.
+POLE = 0
+
+
 @njit(cache=True, inline="always", error_model="numpy")
 def _graded(t, k, k_before, k_after):  # pragma: no cover - compiled
     """(position in the pixel, cell width × k) of the subsample at t = (i + ½)/k of a pixel with k cells a side whose
@@ -708,8 +719,10 @@ def _graded(t, k, k_before, k_after):  # pragma: no cover - compiled
     so the spacing of the lookups changes smoothly across a pixel edge where the rate steps. φ is the identity
     between equal rates, and monotone (its end slopes lie in (0, 2)). With plain cells the spacing jumped there and
     the lookups' sum over a sun's spline lost its balance: rings of pixels off by up to ~1 % (cube 256 → lat-long
-    512: 4.5 % of the pixels over 0.2 %; 0.4 % graded)."""
-    m0, m1 = 2.0 * k / (k + k_before), 2.0 * k / (k + k_after)
+    512: 4.5 % of the pixels over 0.2 %; 0.4 % graded). A neighbour of :data:`POLE` cells (a lat-long target's
+    pole) makes the end cell there vanish: φ'(0) = 0 (see POLE)."""
+    m0 = 0.0 if k_before == POLE else 2.0 * k / (k + k_before)
+    m1 = 0.0 if k_after == POLE else 2.0 * k / (k + k_after)
     t2, t3 = t * t, t * t * t
     phi = m0 * (t3 - 2.0 * t2 + t) + (3.0 * t2 - 2.0 * t3) + m1 * (t3 - t2)
     slope = m0 * (3.0 * t2 - 4.0 * t + 1.0) + 6.0 * (t - t2) + m1 * (3.0 * t2 - 2.0 * t)
@@ -1119,6 +1132,61 @@ def _arc_samples(tgt_kind, rho, area, per_row, a0, a1, b0, b1, centre, cuts, m, 
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def slots(k):  # pragma: no cover - compiled
+    """Subsamples a pixel of k × k cells may list: its cells, and a cube pixel's edge terms, two lookups for each
+    side on its face's side (:func:`_cube_edge_terms`; a disc's rim pixel with no cell on the disc lists one, its
+    centre)."""
+    return k * k + 8
+
+
+# A cube target's edges: two faces' grids of subsamples meet there at an angle. The midpoint rule's end terms,
+# −(h²/24)·∂(JB)/∂n along each face's side (J = dω/(ds dt) = (1 + s² + t²)^(−3/2), h the spacing across the edge),
+# cancel between the two faces only up to the lines' kink: the two faces' outward steps do not add to 0 but to
+# −t·∂d/∂t, t ∈ [−1, 1] along the edge, leaving (h²/24)·∫ t J ∂B/∂t dt per edge, half from each face's side. For
+# a uniform map that integral is 0, but its parts by parts are not: (h²/24)·([t J B] at the vertices − ∫ B ∂(tJ)/∂t),
+# and at a vertex the three edges add (h²/8)·J·B — a one-pixel sun on the vertex came out +0.285 % (lat-long 505
+# rows → cube 134, k = 5), 1/k² in the rate, where nothing else near it or along the edges was over 0.09 %. Each
+# pixel on a face's side takes its share back in the same by-parts form, as lookups at its side's two ends weighted
+# ±(h²/48)·t·J (:func:`_cube_edge_terms`), in its weight sum too: their weights sum to −(h²/48)·Δ(tJ) along the
+# side, what the line integral takes from a map of the pixel's own value, so a uniform map stays exactly uniform.
+@njit(cache=True, inline="always", error_model="numpy")
+def _cube_edge_terms(tgt_axes, face, row, col, h, w, rates, rotation, src_kind, src_axes, src_h, src_w, pfs, pxs,
+                     pys, pws, n, wsum):  # pragma: no cover - compiled
+    """Append to subsamples 0 … n − 1 of cube pixel (face, row, col) of an h × w face, with ``rates`` as
+    :func:`_subsamples`', the edge terms of each side of it that lies on its face's side: lookups at that side's two
+    ends, weighted +(first end) / −(second end) × (h²/48)·t·J in the cells' weight units (dω/(du dv) × cell area, 1 for a plain
+    cell); returns (n, wsum) with them added."""
+    ku, kv, left, right, above, below = rates
+    for side in range(4):  # the pixel's sides u = 0, u = 1 (along v), v = 0, v = 1 (along u)
+        across = float(side % 2)  # where the side lies, in the pixel's (u or v) across it
+        if side < 2:
+            if col != (0 if side == 0 else w - 1):
+                continue
+            _, s_end = _graded(across, ku, left, right)  # the end cells' width × ku there
+            scale = s_end * s_end / 48.0 * kv / ku  # h² in cell units: a cell is 1/(w ku) × 1/(h kv) of (u, v)
+        else:
+            if row != (0 if side == 2 else h - 1):
+                continue
+            _, s_end = _graded(across, kv, above, below)
+            scale = s_end * s_end / 48.0 * ku / kv
+        for end in range(2):  # the side's two ends, along it
+            if side < 2:
+                u, v = across, (row + end) / h
+                t = 2.0 * v - 1.0
+            else:
+                u, v = (col + end) / w, across
+                t = 2.0 * u - 1.0
+            x, y, z, density = target_direction(CUBE, tgt_axes, face, u, v)
+            weight = scale * t * density * (-1.0 if end == 1 else 1.0)
+            rx, ry, rz = _turned(x, y, z, rotation)
+            pfs[n], pxs[n], pys[n] = source_position(src_kind, src_axes, rx, ry, rz, src_h, src_w)
+            pws[n] = weight
+            wsum += weight
+            n += 1
+    return n, wsum
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, rates, rotation, src_kind, src_axes, src_h, src_w, pfs, pxs,
                 pys, pws, rim_k_max=0):  # pragma: no cover - compiled
     """One target pixel's subsamples — ku × kv, its cells graded towards its neighbours' rates (:func:`_graded`);
@@ -1133,6 +1201,9 @@ def _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, rates, rotation, src_k
         if n > 0:
             return n, wsum
     ku, kv, left, right, above, below = rates
+    if tgt_kind == LATLONG:  # its pole rows' cells vanish at the pole (see POLE)
+        above = POLE if row == 0 else above
+        below = POLE if row == h - 1 else below
     n, wsum = 0, 0.0
     for i in range(ku * kv + 1):
         cell = 1.0
@@ -1155,6 +1226,9 @@ def _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, rates, rotation, src_k
         pws[n] = weight
         wsum += weight
         n += 1
+    if tgt_kind == CUBE:
+        n, wsum = _cube_edge_terms(tgt_axes, face, row, col, h, w, (ku, kv, left, right, above, below), rotation,
+                                   src_kind, src_axes, src_h, src_w, pfs, pxs, pys, pws, n, wsum)
     return n, wsum
 
 
@@ -1459,7 +1533,7 @@ def resample_into(src_kind, src, valid, levels, reduced, row_offsets, caps, src_
     h, w = tgt_h, out.shape[1]
     last = first + out.shape[0]
     wx, wy, acc, value = np.empty(4), np.empty(4), np.empty(3), np.empty(3)
-    m = k_max * k_max + 1
+    m = slots(k_max)
     pfs, pxs, pys, pws = np.empty(m, np.int64), np.empty(m), np.empty(m), np.empty(m)
     tile, scratch = np.empty((TILE, TILE)), _polar_scratch(k_max)
     rates = np.empty((3, 2, w), np.int64)
@@ -1578,7 +1652,7 @@ def footprint_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, c
     reduced rows (:func:`apply_taps` reads it there)."""
     h, w = tgt_h, tgt_w
     n_lines = counts.shape[0] // w
-    m = k_max * k_max + 1
+    m = slots(k_max)
     pfs, pxs, pys, pws = np.empty(m, np.int64), np.empty(m), np.empty(m), np.empty(m)
     tile, scratch = np.empty((TILE, TILE)), _polar_scratch(k_max)
     wx, wy = np.empty(4), np.empty(4)
@@ -1608,7 +1682,7 @@ def footprint_delivery(src_kind, src_shape, valid, index_map, levels, row_offset
     :func:`footprint_taps`'s taps): each target pixel's taps, weighted by its solid angle ``omega_t`` (flat over
     the target's lines) — the energy a sun in every source pixel at once takes there, without listing the taps."""
     h, w = tgt_h, tgt_w
-    m = k_max * k_max + 1
+    m = slots(k_max)
     pfs, pxs, pys, pws = np.empty(m, np.int64), np.empty(m), np.empty(m), np.empty(m)
     tile, scratch = np.empty((TILE, TILE)), _polar_scratch(k_max)
     wx, wy = np.empty(4), np.empty(4)
@@ -1668,7 +1742,7 @@ def source_rim_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, 
     ``touched``; returns how many. The caller reads them and zeroes ``merged`` there again."""
     h, w = tgt_h, tgt_w
     face, row = line // h, line % h
-    m = k_max * k_max + 1
+    m = slots(k_max)
     pfs, pxs, pys, pws = np.empty(m, np.int64), np.empty(m), np.empty(m), np.empty(m)
     wx, wy = np.empty(4), np.empty(4)
     idx, wts = np.empty(16 * m, np.int32), np.empty(16 * m, np.float32)

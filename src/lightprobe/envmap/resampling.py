@@ -687,7 +687,7 @@ class _Taps:
         self.grid = grid = filled.grid_shape(size)
         faces = grid if filled.faces > 1 else (1,) + grid
         self.lines, self.width = faces[0] * faces[1], faces[2]
-        self.max_taps = max(TILE_TAPS, 16 * (k_max * k_max + 1))
+        self.max_taps = max(TILE_TAPS, 16 * fused.slots(k_max))
         band = max(1, min(16, TAPS_SCRATCH_BYTES // (self.width * self.max_taps * 8)))  # lines a thread lists
         self.firsts = range(0, self.lines, band)
         self.band_lines = band
@@ -833,10 +833,14 @@ def _axes(lay: Layout) -> np.ndarray:
 
 def reference_resample(source: EnvMap, target: Layout, grid: tuple[int, ...], k: int,
                        rotation: np.ndarray | None) -> EnvMap:
-    """The numpy formulation of :func:`resample` (k×k lookups per target pixel, in chunks): the reference the
-    compiled kernel is tested against, and the path for layouts it does not know. Its lookups are the layout's
+    """The numpy formulation of :func:`resample` (k×k lookups per target pixel, in chunks; a lat-long target's pole
+    rows in the kernel's cells, a cube target's edge terms as the kernel's): the reference the compiled kernel is
+    tested against, and the path for layouts it does not know. Its lookups are the layout's
     plain B-spline: near a lat-long source's poles it lacks the kernel's rational row weights (the tests compare the
     two on sources under :data:`lightprobe.envmap.pole_rows.MIN_HEIGHT` rows, where the kernel has none either)."""
+    if isinstance(target, Cross):  # filled as cube faces and rearranged, as the kernel does (the edge terms are a face's)
+        faces = reference_resample(source, CUBE, CUBE.grid_shape(target.size_of(grid)), k, rotation)
+        return EnvMap(owned(target.from_cube(faces.data)), target)
     lookup = source.layout.sampler(source.data, "bspline", balance.prefilter_for(source.layout))
     sub = (np.arange(k) + 0.5) / k
     h, w = grid[-2:]
@@ -854,12 +858,17 @@ def reference_resample(source: EnvMap, target: Layout, grid: tuple[int, ...], k:
             (flat_row[sl, None, None] + sub[None, :, None]) / h,
         )
         weight = target.uv_density(f, u, v)
+        if target.name == "latlong":  # the kernel's cells in its pole rows (fused.POLE)
+            v, weight = _pole_cells(flat_row[sl], sub, h, u, v, weight)
         d = np.where(weight[..., None] > 0, target.uv_to_dir(f, u, v), _ANY_DIRECTION)
         if rotation is not None:
             d = d @ rotation  # row vectors: d @ R = (Rᵀ d)ᵀ
         values = lookup(d)
         wsum = weight.sum(axis=(1, 2))
-        out[sl] = np.einsum("pij,pijc->pc", weight, values) / np.where(wsum > 0, wsum, 1.0)[:, None]
+        total = np.einsum("pij,pijc->pc", weight, values)
+        if target.name == "cube":  # the kernel's edge terms (fused._cube_edge_terms)
+            _add_cube_edge_terms(lookup, flat_face[sl], flat_row[sl], flat_col[sl], h, w, rotation, total, wsum)
+        out[sl] = total / np.where(wsum > 0, wsum, 1.0)[:, None]
         # a disc's rim pixel can have all its subsamples off the disc: it shows its centre's (rim) direction
         missed = np.nonzero((wsum == 0) & valid[sl])[0]
         if missed.size:
@@ -868,6 +877,45 @@ def reference_resample(source: EnvMap, target: Layout, grid: tuple[int, ...], k:
             out[start + missed] = lookup(d0 if rotation is None else d0 @ rotation)
     out[~valid] = 0.0
     return EnvMap(owned(out.reshape(grid + (3,))), target)
+
+
+def _add_cube_edge_terms(lookup, face: np.ndarray, row: np.ndarray, col: np.ndarray, h: int, w: int, rotation,
+                         total: np.ndarray, wsum: np.ndarray) -> None:
+    """Add to cube pixels' weighted sums ``total`` (p, 3) and weight sums ``wsum`` (p,), at k × k plain cells, the
+    kernel's edge terms (:func:`lightprobe.envmap.fused._cube_edge_terms`): for each side of a pixel on its face's
+    side, lookups at the side's ends weighted ± t·(dω/(du dv))/48."""
+    for side in range(4):
+        across = float(side % 2)
+        on = (col == (0 if side == 0 else w - 1)) if side < 2 else (row == (0 if side == 2 else h - 1))
+        at = np.nonzero(on)[0]
+        for end in (0, 1):
+            if side < 2:
+                u, v = np.full(at.size, across), (row[at] + end) / h
+                t = 2 * v - 1
+            else:
+                u, v = (col[at] + end) / w, np.full(at.size, across)
+                t = 2 * u - 1
+            weight = (-1.0 if end else 1.0) * t * CUBE.uv_density(face[at], u, v) / 48.0
+            d = CUBE.uv_to_dir(face[at], u, v)
+            total[at] += weight[:, None] * lookup(d if rotation is None else d @ rotation)
+            wsum[at] += weight
+
+
+def _pole_cells(rows: np.ndarray, sub: np.ndarray, h: int, u: np.ndarray, v: np.ndarray,
+                weight: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(v, weight) of a lat-long target's (p, k, k) subsamples (v along axis 1) of pixels in ``rows`` of ``h``,
+    with the pole rows' cells warped as the kernel's (:data:`lightprobe.envmap.fused.POLE`): v at the warped
+    positions, the density there times the cell's width."""
+    k = sub.size
+    v, weight = v.copy(), weight.copy()
+    for pole_row in (0, h - 1):
+        before = fused.POLE if pole_row == 0 else k
+        after = fused.POLE if pole_row == h - 1 else k
+        fv, sv = fused._graded.py_func(sub, k, before, after)
+        at = rows == pole_row
+        v[at] = (pole_row + fv[None, :, None]) / h
+        weight[at] = LATLONG.uv_density(None, u[at], v[at]) * sv[None, :, None]
+    return v, weight
 
 
 _ANY_DIRECTION = np.array([0.0, 0.0, -1.0])  # stands in for subsamples off the valid region (their weight is 0)
