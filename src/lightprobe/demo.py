@@ -245,13 +245,18 @@ def _convert_peak_memory(env, folder) -> dict[str, float]:
 
 
 @functools.lru_cache(maxsize=4)
-def _pair_gains(source: str, size: int, target: str, out_size: int, margin: float | None) -> np.ndarray:
-    """Resampler.energy_gains(rim_margin=margin) of a pair, read-only: a table row and a heat map share it."""
+def _pair_gains(source: str, size: int, target: str, out_size: int, margin: float | None,
+                turn: tuple[float, float, float] | None = None) -> np.ndarray:
+    """Resampler.energy_gains(rim_margin=margin) of a pair, the target turned by ``turn`` (yaw, pitch, roll in
+    degrees) if given, read-only: a table row and a heat map share it."""
     from .envmap import Resampler
+    from .frames import rotation_from_ypr
     from .layouts import layout
 
     src = layout(source)
-    gains = Resampler(src, src.grid_shape(size), layout(target), out_size).energy_gains(rim_margin=margin)
+    rotation = None if turn is None else rotation_from_ypr(*turn)
+    gains = Resampler(src, src.grid_shape(size), layout(target), out_size,
+                      rotation=rotation).energy_gains(rim_margin=margin)
     gains.setflags(write=False)
     return gains
 
@@ -268,6 +273,10 @@ def _every_pixel_gains() -> dict[str, tuple[float, float]]:
              ("lat-long 128 → mirror ball 32 (0.73 % before the flux correction)", "latlong", 128, "sphere", 32),
              ("lat-long 746×373 → cube 352 (an odd height: +2920 % by the poles before a row's last halving could "
               "leave an odd width)", "latlong", 373, "cube", 352),
+             ("lat-long 202×101 → cube 27, no margin (+0.275 % on the cube's vertices before the edge terms)",
+              "latlong", 101, "cube", 27, None),
+             ("lat-long 256×128 → lat-long 39 turned (yaw 104°, pitch 133°, roll −39°) (+0.52 % on the target's "
+              "poles before their cells vanished there; 0.07 % there now)", "latlong", 128, "latlong", 39, None, (104, 133, -39)),
              ("lat-long 256 → angular 128 (0.10 % by its rates alone before lat-longs up to 2048×1024 were "
               "flux-corrected; 0.27 % at 0.5 pixels between lookups)", "latlong", 256, "angular", 128),
              ("cube 64 → cube 64 (corner texels: was 4.6 %; 0.86 % before the texel balance, 0.13 % before the "
@@ -292,8 +301,9 @@ def _every_pixel_gains() -> dict[str, tuple[float, float]]:
              ("mirror ball 512 → angular 128, no margin (its ring read round its rim direction)", "sphere", 512,
               "angular", 128, None))
     out = {}
-    for label, source, size, target, out_size, *margin in cases:  # the margin: 25° unless a row gives its own
-        gains = _pair_gains(source, size, target, out_size, margin[0] if margin else 25.0)
+    for label, source, size, target, out_size, *options in cases:  # the margin (25° unless given), a turn
+        margin, turn = (options + [25.0, None][len(options):])[:2]
+        gains = _pair_gains(source, size, target, out_size, margin, turn)
         gains = np.abs(gains[np.isfinite(gains)])
         out[label] = (float(gains.max()), float((gains > 2e-3).mean()))
     return out
