@@ -279,7 +279,8 @@ def _every_pixel_gains() -> dict[str, tuple[float, float]]:
              ("lat-long 202×101 → cube 27, no margin (+0.275 % on the cube's vertices before the edge terms)",
               "latlong", 101, "cube", 27, None),
              ("lat-long 256×128 → lat-long 39 turned (yaw 104°, pitch 133°, roll −39°) (+0.52 % on the target's "
-              "poles before their cells vanished there; 0.07 % there now)", "latlong", 128, "latlong", 39, None, (104, 133, -39)),
+              "poles before their cells vanished there; 0.07 % there now)", "latlong", 128, "latlong", 39, None,
+              {"turn": (104, 133, -39)}),
              ("lat-long 256 → angular 128 (0.10 % by its rates alone before lat-longs up to 2048×1024 were "
               "flux-corrected; 0.27 % at 0.5 pixels between lookups)", "latlong", 256, "angular", 128),
              ("cube 64 → cube 64 (corner texels: was 4.6 %; 0.86 % before the texel balance, 0.13 % before the "
@@ -296,7 +297,7 @@ def _every_pixel_gains() -> dict[str, tuple[float, float]]:
              ("lat-long 1024×512 → mirror ball 233, no margin, its rows alone (without its flux correction, as a "
               "lat-long over 2048×1024 has them: 2200×1100 → 500 reads 0.145 %, 0.28 % before lookups 0.35 source "
               "pixels apart and long ring pixels read round the rim direction; 18 s to measure, so not here)",
-              "latlong", 512, "sphere", 233, None, None, True),
+              "latlong", 512, "sphere", 233, None, {"uncorrected": True}),
              ("lat-long 256 → angular 128, no margin (0.46 % by the rim direction before its rim pixels were "
               "sampled round it, 0.09 % by them alone)", "latlong", 256, "angular", 128, None),
              ("angular 256 → lat-long 128, no margin (was 555 % within 2° of the angular map's rim direction, left "
@@ -305,9 +306,9 @@ def _every_pixel_gains() -> dict[str, tuple[float, float]]:
              ("mirror ball 512 → angular 128, no margin (its ring read round its rim direction)", "sphere", 512,
               "angular", 128, None))
     out = {}
-    for label, source, size, target, out_size, *options in cases:  # margin (25° unless given), turn, uncorrected
-        margin, turn, uncorrected = (options + [25.0, None, False][len(options):])[:3]
-        gains = _pair_gains(source, size, target, out_size, margin, turn, uncorrected)
+    for label, source, size, target, out_size, *options in cases:  # the margin (25° unless given), then _pair_gains'
+        margin, settings = (options + [25.0, {}][len(options):])[:2]  # keyword settings (turn, uncorrected), if any
+        gains = _pair_gains(source, size, target, out_size, margin, **settings)
         gains = np.abs(gains[np.isfinite(gains)])
         out[label] = (float(gains.max()), float((gains > 2e-3).mean()))
     return out

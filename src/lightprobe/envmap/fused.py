@@ -1154,8 +1154,8 @@ def _cube_edge_terms(tgt_axes, face, row, col, h, w, rates, rotation, src_kind, 
                      pys, pws, n, wsum):  # pragma: no cover - compiled
     """Append to subsamples 0 … n − 1 of cube pixel (face, row, col) of an h × w face, with ``rates`` as
     :func:`_subsamples`', the edge terms of each side of it that lies on its face's side: lookups at that side's two
-    ends, weighted +(first end) / −(second end) × (h²/48)·t·J in the cells' weight units (dω/(du dv) × cell area, 1 for a plain
-    cell); returns (n, wsum) with them added."""
+    ends, weighted +(first end) / −(second end) × (h²/48)·t·J in the cells' weight units (dω/(du dv) × cell area,
+    1 for a plain cell); returns (n, wsum) with them added."""
     ku, kv, left, right, above, below = rates
     for side in range(4):  # the pixel's sides u = 0, u = 1 (along v), v = 0, v = 1 (along u)
         across = float(side % 2)  # where the side lies, in the pixel's (u or v) across it

@@ -838,7 +838,7 @@ def reference_resample(source: EnvMap, target: Layout, grid: tuple[int, ...], k:
     tested against, and the path for layouts it does not know. Its lookups are the layout's
     plain B-spline: near a lat-long source's poles it lacks the kernel's rational row weights (the tests compare the
     two on sources under :data:`lightprobe.envmap.pole_rows.MIN_HEIGHT` rows, where the kernel has none either)."""
-    if isinstance(target, Cross):  # filled as cube faces and rearranged, as the kernel does (the edge terms are a face's)
+    if isinstance(target, Cross):  # filled as cube faces and rearranged, as the kernel does (edge terms are a face's)
         faces = reference_resample(source, CUBE, CUBE.grid_shape(target.size_of(grid)), k, rotation)
         return EnvMap(owned(target.from_cube(faces.data)), target)
     lookup = source.layout.sampler(source.data, "bspline", balance.prefilter_for(source.layout))
