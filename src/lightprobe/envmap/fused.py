@@ -1677,10 +1677,13 @@ def footprint_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, c
 @njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})
 def footprint_delivery(src_kind, src_shape, valid, index_map, levels, row_offsets, caps, src_axes, src_h, src_w,
                        tgt_kind, tgt_axes, tgt_h, tgt_w, tgt_valid, all_valid, k, k_max, rotation, first, last,
-                       omega_t, max_taps, total):  # pragma: no cover - compiled
+                       omega_t, max_taps, total, base):  # pragma: no cover - compiled
     """Σ_t Ω_t W_ts over target lines ``first`` … ``last − 1``, added into ``total`` (float64, indexed as
-    :func:`footprint_taps`'s taps): each target pixel's taps, weighted by its solid angle ``omega_t`` (flat over
-    the target's lines) — the energy a sun in every source pixel at once takes there, without listing the taps."""
+    :func:`footprint_taps`'s taps less ``base``; taps outside it are left out): each target pixel's taps,
+    weighted by its solid angle ``omega_t`` (flat over lines first …; a pixel whose weight is 0 is skipped)
+    — the energy a sun in every source pixel at once takes there, without listing the taps. A ``base`` past the
+    source's pixels and a short ``total`` keep a span of a latlong's reduced polar rows alone
+    (:mod:`lightprobe.envmap.polar_balance`); a disc source's rim taps ignore both (0 and all for those)."""
     h, w = tgt_h, tgt_w
     m = slots(k_max)
     pfs, pxs, pys, pws = np.empty(m, np.int64), np.empty(m), np.empty(m), np.empty(m)
@@ -1695,7 +1698,9 @@ def footprint_delivery(src_kind, src_shape, valid, index_map, levels, row_offset
         for col in range(w):
             if not all_valid and tgt_valid[face, row, col] == 0:
                 continue
-            o = omega_t[line * w + col]
+            o = omega_t[(line - first) * w + col]
+            if o == 0.0:
+                continue
             if _source_rim_marked(rates, row, col, k, k_max) and _source_rim_taps_into(
                     src_kind, src_shape, valid, index_map, src_axes, src_h, src_w, tgt_kind, tgt_axes, face, row,
                     col, h, w, rotation, o, pfs, pxs, pys, pws, wx, wy, idx, wts, total):
@@ -1704,7 +1709,9 @@ def footprint_delivery(src_kind, src_shape, valid, index_map, levels, row_offset
                             src_w, tgt_kind, tgt_axes, h, w, k, k_max, rotation, face, row, col, rates, pfs, pxs,
                             pys, pws, tile, scratch, wx, wy, idx, wts)
             for j in range(t):
-                total[idx[j]] += o * wts[j]
+                i = idx[j] - base
+                if 0 <= i < total.shape[0]:
+                    total[i] += o * wts[j]
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})

@@ -36,10 +36,12 @@ MAX_SAMPLES = 16  # k×k lookups per target pixel, at most
 CAP_COS = 0.7  # rows with |cos θ| at least this (within ~46° of a pole) may be reduced
 MIN_CELLS = 4  # reduced columns a row keeps at its deepest halving (fewer: read as its mean): the B-spline's
 #               taps. At 8 a turned lat-long target's pole rows kept a sun better (2048×1024 → 194: two rows 0.22 %
-#               off at 4), but a sun 2–4° from the pole was read as its row's mean and moved over a target pixel
+#               off at 4), but a sun 2–4° from the pole was read as its row's mean and moved over a target pixel;
+#               the cells of so coarse a row are now balanced (polar_balance: 0.09 % there)
 MIN_OVERLAP_CELLS = 8  # the same for a level reduced by overlaps: at 4, a turned cube of 20 from a lat-long of
 #                       1049 rows (read as 131, W = 2 × 131) lost 0.69 % of a sun in its source's pole rows, 2012×1006
-#                       → a turned lat-long of 194 0.31 %; at 8, 0.22 % and 0.19 % (0.20 and 0.19 read as means)
+#                       → a turned lat-long of 194 0.31 %; at 8, 0.22 % and 0.19 % (0.20 and 0.19 read as means),
+#                       and 0.13 % and 0.09 % since the cells are balanced (polar_balance)
 SAMPLES = 16_000  # target pixels sampled (every stride-th) to measure the lookup spacing
 
 

@@ -15,7 +15,7 @@ from ..layouts import CUBE, LATLONG, Cross, Layout
 from .. import limits
 from ..limits import check_memory, check_pixels
 from ..progress import track
-from . import balance, cube_symmetry, flux, fused, polar, pole_rows, separable
+from . import balance, cube_symmetry, flux, fused, polar, polar_balance, pole_rows, separable
 from .map import EnvMap, owned, pixel_directions, pixel_solid_angles
 from .overlaps import column_means, interval_overlaps
 
@@ -473,10 +473,16 @@ def _plan(source: EnvMap, target: Layout, size: int | None, rotation, samples: i
                                                         source.grid, omega_t))
     if corrected is not None:  # read-only, as a map's pixels are: the kernel is compiled for one array type
         data = owned(corrected.apply(data))
+    rows_alone = reduce_poles and separable.applies(source.layout, filled, rotation) and corrected is None
     if src_kind == fused.LATLONG:  # read in place: columns wrap and rows reflect across the poles in the kernel
         img, valid = np.ascontiguousarray(data)[None], np.ones((1, 1, 1), dtype=np.float32)
         if reduce_poles:
-            reduction = polar.reduced_rows(img[0], polar.polar_levels(steps, source.grid, k))
+            found = polar.polar_levels(steps, source.grid, k)
+            reduction = polar.reduced_rows(img[0], found)
+            cells = None if corrected is not None or rows_alone else _cell_balance(
+                source.grid, found, filled, grid, k, k_max, steps, rotation)
+            if cells is not None:
+                cells.apply(reduction[1])  # in place: the reduced rows are this conversion's own
     else:
         img, valid = source.layout.padded(data, prefilter=balance.prefilter_for(source.layout))
         if source.all_valid:  # a cube's padding is valid everywhere: no table of ones for the kernel to read
@@ -488,9 +494,7 @@ def _plan(source: EnvMap, target: Layout, size: int | None, rotation, samples: i
     by_symmetry = (symmetric and src_kind == fused.LATLONG and filled.name == "cube"
                    and cube_symmetry.applies(source.grid[-1], rotation))
     cube_rows = (img, *reduction, faces[1], k, cube_symmetry._kinds()) if by_symmetry else None
-    by_rows = None
-    if reduce_poles and separable.applies(source.layout, filled, rotation) and corrected is None:
-        by_rows = (separable.Separable(source.grid, grid[-2:], k, rotation), source.data)
+    by_rows = (separable.Separable(source.grid, grid[-2:], k, rotation), source.data) if rows_alone else None
     return _Plan(target, filled, grid, faces[1], args, cube_rows, by_rows)
 
 
@@ -534,7 +538,7 @@ class Resampler:
         self.size = size or target.default_size(pixels)
         check_size(target, self.size)
         out_grid = target.grid_shape(self.size)
-        self.offsets, self._flux = None, None
+        self.offsets, self._flux, self._cells = None, None, None
         reduced_first = (samples is None
                          and _reduced_grid(source_layout, tuple(source_grid), target, out_grid)[1] != tuple(source_grid))
         if reduced_first or fused.CODES.get(source_layout.name) is None \
@@ -603,6 +607,13 @@ class Resampler:
         if apart.size:
             self._splice(apart, taps, counts)
         self._filled_grid, self._lines = taps.grid, (taps.lines, taps.width)
+        if self._levels is not None and not corrected:  # a lat-long's coarsest polar rows, balanced as resample's
+            omega_t = pixel_solid_angles(filled, taps.grid).reshape(-1)
+            per_cell = _tap_totals(self, omega_t, taps.source_pixels + taps.reduced_size)[taps.source_pixels:]
+            parts = []
+            for _, rows, _ in polar_balance.caps(self._levels, source_grid[-1]):
+                parts += polar_balance.balance_of(per_cell, 0, self._levels, source_grid[-1], rows)
+            self._cells = polar_balance.joined(parts)
         self._flux = _flux_stencil(source_layout, tuple(source_grid), self.target, taps.grid, self.rotation,
                                    self.samples, (k, k_max), lambda omega_t: _taps_delivery(self, source_layout,
                                                                                 tuple(source_grid), omega_t))
@@ -612,6 +623,14 @@ class Resampler:
         correction removes, for pictures and tests. Shares the weights."""
         plain = copy.copy(self)
         plain._flux = None
+        return plain
+
+    def without_cell_balance(self) -> Resampler:
+        """This conversion as it would be without the balance of a lat-long source's coarsest polar rows
+        (:mod:`lightprobe.envmap.polar_balance`): what the balance removes, for pictures and tests. Shares the
+        weights."""
+        plain = copy.copy(self)
+        plain._cells = None
         return plain
 
     def energy_gains(self, rim_margin: float | None = None) -> np.ndarray:
@@ -660,6 +679,8 @@ class Resampler:
             data = balance.balanced_faces(np.asarray(data, dtype=np.float32))
         reduced = (polar.no_reduction()[1] if self._levels is None
                    else polar.reduced_rows(np.asarray(data), self._levels)[1])
+        if self._cells is not None:
+            self._cells.apply(reduced)
         src = np.ascontiguousarray(data).reshape(-1, 3)
         lines, w = self._lines
         out = np.empty((lines * w, 3), np.float32)
@@ -742,8 +763,8 @@ def delivered(taps: _Taps, source_grid: tuple[int, ...], omega_t: np.ndarray) ->
     def thread_total(t: int) -> np.ndarray:  # the same shares in the same order every time: the same sums
         total = np.zeros(n_total)
         for first in firsts[t::threads]:
-            fused.footprint_delivery(*taps.kernel_args, first, min(first + step, taps.lines), omega_t,
-                                     taps.max_taps, total)
+            fused.footprint_delivery(*taps.kernel_args, first, min(first + step, taps.lines),
+                                     omega_t[first * taps.width:], taps.max_taps, total, 0)
         return total
 
     with ThreadPoolExecutor(threads) as pool:
@@ -751,9 +772,64 @@ def delivered(taps: _Taps, source_grid: tuple[int, ...], omega_t: np.ndarray) ->
     return _unreduced(np.sum(totals, axis=0), source_grid, taps.found_levels)
 
 
+_CELL_CACHE: dict = {}
+_CELL_CACHE_PAIRS = 16  # balances a process keeps (a few kB each)
 _FLUX_CACHE: dict = {}
 _FLUX_LOCK = threading.Lock()
 _FLUX_CACHE_BYTES = 256 << 20  # the corrections a process keeps (a batch converts one pair of grids many times)
+
+
+def _cell_balance(source_grid: tuple[int, int], found: np.ndarray, filled: Layout, grid: tuple[int, ...], k: int,
+                  k_max: int, steps: polar.Steps, rotation) -> polar_balance.CellBalance | None:
+    """The balance of a lat-long source's coarsest polar rows in this conversion (:mod:`lightprobe.envmap.
+    polar_balance`), or None where it has none; kept for the last pairs of grids. Measured by the compiled adjoint,
+    a pole at a time, on the target pixels by that pole alone and into its balanced rows' cells alone."""
+    caps = polar_balance.caps(found, source_grid[-1])
+    if not caps:
+        return None
+    key = (source_grid, filled, tuple(grid), k, k_max, found.tobytes(),
+           None if rotation is None else np.asarray(rotation, np.float64).tobytes())
+    with _FLUX_LOCK:
+        if key in _CELL_CACHE:
+            return _CELL_CACHE[key]
+    taps = _Taps(LATLONG, source_grid, filled, filled.size_of(grid), k, k_max, steps, rotation)
+    parts = []
+    for sign, rows, angle in caps:
+        first, end = polar_balance.cell_span(found, source_grid[-1], rows)
+        kept = polar_balance.near_pole(filled, grid, rotation, sign, angle)
+        per_cell = _kept_delivery(taps, filled, grid, kept, taps.source_pixels + first, end - first)
+        parts += polar_balance.balance_of(per_cell, first, found, source_grid[-1], rows)
+    cells = polar_balance.joined(parts)
+    with _FLUX_LOCK:
+        while len(_CELL_CACHE) >= _CELL_CACHE_PAIRS:
+            _CELL_CACHE.pop(next(iter(_CELL_CACHE)))
+        _CELL_CACHE[key] = cells
+    return cells
+
+
+def _kept_delivery(taps: _Taps, filled: Layout, grid: tuple[int, ...], kept: np.ndarray, base: int,
+                   size: int) -> np.ndarray:
+    """Σ_t Ω_t W_ti over the target pixels ``kept`` (sorted, flat over the target's lines) for the ``size`` tap
+    indices from ``base`` on (float64): the compiled adjoint on each run of lines that holds a kept pixel, the
+    others weighing 0 there (the kernel skips them)."""
+    omega_kept = filled.solid_angles_of(tuple(grid), kept)
+    lines = np.unique(kept // taps.width)
+    runs = np.split(lines, np.flatnonzero(np.diff(lines) > 1) + 1)
+    runs = [part for run in runs for part in np.array_split(run, -(-len(run) // 32))]  # ≤ 32 lines of weights
+    threads = max(1, min(limits.threads(), len(runs)))
+
+    def thread_total(t: int) -> np.ndarray:
+        total = np.zeros(size)
+        for run in runs[t::threads]:
+            first, last = int(run[0]), int(run[-1]) + 1
+            lo, hi = np.searchsorted(kept, [first * taps.width, last * taps.width])
+            omega_t = np.zeros((last - first) * taps.width)
+            omega_t[kept[lo:hi] - first * taps.width] = omega_kept[lo:hi]
+            fused.footprint_delivery(*taps.kernel_args, first, last, omega_t, taps.max_taps, total, base)
+        return total
+
+    with ThreadPoolExecutor(threads) as pool:
+        return np.sum(list(pool.map(thread_total, range(threads))), axis=0)
 
 
 # Lat-long sources are flux-corrected into discs up to this many pixels (as the conversion reads them, after any box
@@ -955,10 +1031,16 @@ def resample_memory(source_pixels: int, target_pixels: int, target: Layout, sour
 
 # ---- energy of a one-pixel sun, every pixel at once (Resampler.energy_gains) ----------------------------------------
 
+def _tap_totals(resampler: Resampler, omega_t: np.ndarray, n: int) -> np.ndarray:
+    """Σ_t Ω_t W_ti per tap index i (float64, at least ``n``: source pixels, then reduced polar rows), from the
+    cached taps."""
+    per_tap = resampler.wts.astype(np.float64) * np.repeat(omega_t, np.diff(resampler.offsets))
+    return np.bincount(resampler.idx, per_tap, minlength=n)
+
+
 def _taps_delivery(resampler: Resampler, layout: Layout, grid: tuple[int, ...], omega_t: np.ndarray) -> np.ndarray:
     """Σ_t Ω_t W_ts per source pixel s (flat), from the cached taps."""
-    per_tap = resampler.wts.astype(np.float64) * np.repeat(omega_t, np.diff(resampler.offsets))
-    return _unreduced(np.bincount(resampler.idx, per_tap, minlength=math.prod(grid)), grid, resampler._levels)
+    return _unreduced(_tap_totals(resampler, omega_t, math.prod(grid)), grid, resampler._levels, resampler._cells)
 
 
 def _raw_pixel_delivery(per_texel: np.ndarray, layout: Layout, grid: tuple[int, ...],
@@ -972,9 +1054,11 @@ def _raw_pixel_delivery(per_texel: np.ndarray, layout: Layout, grid: tuple[int, 
     return per_pixel if stencil is None else stencil.delivered(per_pixel)
 
 
-def _unreduced(total: np.ndarray, grid: tuple[int, ...], found: np.ndarray | None) -> np.ndarray:
-    """Per source pixel (flat) from per tap index: a tap on a lat-long's reduced polar row is handed on to the
-    source pixels it averages (2^ℓ of them, the columns it overlaps by their shares, or the whole row)."""
+def _unreduced(total: np.ndarray, grid: tuple[int, ...], found: np.ndarray | None,
+               cells: polar_balance.CellBalance | None = None) -> np.ndarray:
+    """Per source pixel (flat) from per tap index: a tap on a lat-long's reduced polar row is handed on, through
+    the rows' balance if there is one (``cells``), to the source pixels it averages (2^ℓ of them, the columns it
+    overlaps by their shares, or the whole row)."""
     n_src = math.prod(grid)
     delivered = total[:n_src].copy()
     if found is None:
@@ -982,7 +1066,7 @@ def _unreduced(total: np.ndarray, grid: tuple[int, ...], found: np.ndarray | Non
     h, w = grid
     levels = polar.kernel_levels(found, w)
     row_offsets, _, _ = polar.row_layout(levels, w)
-    reduced = total[n_src:]
+    reduced = total[n_src:] if cells is None else cells.delivered(total[n_src:])
     rows = delivered.reshape(h, w)
     for r in np.nonzero(levels)[0]:
         n = polar.reduced_width(w, int(levels[r]))
