@@ -281,6 +281,9 @@ def _every_pixel_gains() -> dict[str, tuple[float, float]]:
              ("lat-long 256×128 → lat-long 39 turned (yaw 104°, pitch 133°, roll −39°) (+0.52 % on the target's "
               "poles before their cells vanished there; 0.07 % there now)", "latlong", 128, "latlong", 39, None,
               {"turn": (104, 133, -39)}),
+             ("lat-long 512×256 → cube 50 turned (yaw 30°, pitch 40°, roll 50°) (+0.46 % in the source's pole rows "
+              "before the cells of its coarsest polar rows were balanced)", "latlong", 256, "cube", 50, None,
+              {"turn": (30, 40, 50)}),
              ("lat-long 256 → angular 128 (0.10 % by its rates alone before lat-longs up to 2048×1024 were "
               "flux-corrected; 0.27 % at 0.5 pixels between lookups)", "latlong", 256, "angular", 128),
              ("cube 64 → cube 64 (corner texels: was 4.6 %; 0.86 % before the texel balance, 0.13 % before the "
