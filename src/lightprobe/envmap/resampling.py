@@ -479,7 +479,7 @@ def _plan(source: EnvMap, target: Layout, size: int | None, rotation, samples: i
         if reduce_poles:
             found = polar.polar_levels(steps, source.grid, k)
             reduction = polar.reduced_rows(img[0], found)
-            cells = None if corrected is not None or rows_alone else _cell_balance(
+            cells = None if corrected is not None or rows_alone or rotation is None else _cell_balance(
                 source.grid, found, filled, grid, k, k_max, steps, rotation)
             if cells is not None:
                 cells.apply(reduction[1])  # in place: the reduced rows are this conversion's own
@@ -607,7 +607,7 @@ class Resampler:
         if apart.size:
             self._splice(apart, taps, counts)
         self._filled_grid, self._lines = taps.grid, (taps.lines, taps.width)
-        if self._levels is not None and not corrected:  # a lat-long's coarsest polar rows, balanced as resample's
+        if self._levels is not None and not corrected and self.rotation is not None:  # balanced as resample's
             omega_t = pixel_solid_angles(filled, taps.grid).reshape(-1)
             per_cell = _tap_totals(self, omega_t, taps.source_pixels + taps.reduced_size)[taps.source_pixels:]
             parts = []
