@@ -66,6 +66,17 @@ def test_solid_angles_sum_to_4pi(lay, size):
 
 
 @pytest.mark.parametrize("lay", ALL, ids=IDS)
+@pytest.mark.parametrize("size", [9, 41, 300])
+def test_solid_angles_of_chosen_pixels_are_the_tables(lay, size):
+    """solid_angles_of (a few pixels, computed alone: the polar cells' balance asks it of a 4k disc) gives exactly
+    the values of the whole table, invalid pixels' 0 included."""
+    grid = lay.grid_shape(size)
+    table = lay.solid_angles(grid).reshape(-1)
+    flat = np.random.default_rng(size).integers(0, table.size, 3000)
+    np.testing.assert_array_equal(lay.solid_angles_of(grid, flat), table[flat])
+
+
+@pytest.mark.parametrize("lay", ALL, ids=IDS)
 def test_solid_angles_match_the_density(lay):
     """Each pixel's solid angle equals ∫ dω/(du dv) over the pixel, integrated independently (fine midpoint rule)."""
     grid = lay.grid_shape(12)

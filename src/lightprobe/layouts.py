@@ -514,11 +514,8 @@ class Sphere(_DiscLayout):
     def solid_angles_of(self, grid, flat):
         n = grid[0]
         rows, cols = np.divmod(np.asarray(flat), n)
-        e = np.linspace(-1.0, 1.0, n + 1)
-        area = (_quarter_disc_area(e[rows + 1], e[cols + 1]) - _quarter_disc_area(e[rows], e[cols + 1])
-                - _quarter_disc_area(e[rows + 1], e[cols]) + _quarter_disc_area(e[rows], e[cols]))
-        inner, cut = _disc_pixel_classes_of(n, rows, cols)
-        return np.where(inner | cut, 4 * np.maximum(area, 0.0), 0.0)
+        inner, cut = _disc_pixel_classes_of(n, rows, cols)  # the closed form holds inside the disc too
+        return np.where(inner | cut, self._rim_pixel_solid_angles(n, rows, cols), 0.0)
 
     def valid_mask(self, grid):
         """``solid_angles(grid) > 0``, with the exact areas of the rim pixels only."""
