@@ -213,7 +213,9 @@ def section_speed(rep: Report) -> str:
               "angular or mirror-ball source keeps its energy (a cube's corner texels into a lat-long of 32 rows "
               "were off by 2.4 %). A lat-long source holds 0.2 % into lat-long and cube targets by its own "
               "construction, and into discs by its rates (lookups 0.4 pixels apart into an angular map, up to 32 "
-              "a side by a mirror ball's rim: 0.27 / 0.40 % → 0.11 / 0.08 % at full size); one read as up to "
+              "a side by a mirror ball's rim: 0.27 / 0.40 % → 0.11 / 0.08 % at full size; closer by an angular map's "
+              "rim direction, where a pixel's solid angle per area changes by its own size across it: 4096×2048 → "
+              "angular 3268, 0.26 → 0.15 %); one read as up to "
               "65 536 pixels into a disc (a 16–64-pixel one) is flux-corrected too, where its rim rings span "
               "20–40° and no rate helps (0.26–0.74 % before) (<code>benchmarks/bench_energy.py</code>).</p>")
 
@@ -301,6 +303,10 @@ def _every_pixel_gains() -> dict[str, tuple[float, float]]:
               "lat-long over 2048×1024 has them: 2200×1100 → 500 reads 0.145 %, 0.28 % before lookups 0.35 source "
               "pixels apart and long ring pixels read round the rim direction; 18 s to measure, so not here)",
               "latlong", 512, "sphere", 233, None, {"uncorrected": True}),
+             ("lat-long 512×256 → angular 408, no margin, its rows alone (without its flux correction: the ratio of "
+              "a 4k lat-long into its default angular map, 3268, which is not corrected; 0.27 % by the rim "
+              "direction before the pixels just inside took lookups closer there)", "latlong", 256, "angular", 408,
+              None, {"uncorrected": True}),
              ("lat-long 256 → angular 128, no margin (0.46 % by the rim direction before its rim pixels were "
               "sampled round it, 0.09 % by them alone)", "latlong", 256, "angular", 128, None),
              ("angular 256 → lat-long 128, no margin (was 555 % within 2° of the angular map's rim direction, left "

@@ -845,8 +845,9 @@ def _kept_delivery(taps: _Taps, filled: Layout, grid: tuple[int, ...], kept: np.
 # Its rows alone hold the bar into a mirror ball since lookups are 0.35 source pixels apart there
 # (fused.LATLONG_SPHERE_SPACING), a side may take more than k_max where the other needs fewer (fused._within_budget)
 # and the ball's long ring pixels are read round its rim direction (fused._rim_polar): 4096×2048 → mirror ball 1024
-# 0.16 % (was 0.41 %), → 3268, its default size, 0.12 % (0.30 %). Not at an angular map's rim direction: → angular
-# 3268 0.26 % (0.33 %).
+# 0.16 % (was 0.41 %), → 3268, its default size, 0.12 % (0.30 %). Into an angular map, since the pixels by its rim
+# direction take lookups closer there (fused.ANGULAR_RIM_SPACING): → angular 3268 0.15 % (0.26 %; 0.12 % at the rim
+# direction).
 LATLONG_FLUX_MAX_PIXELS = 1 << 21
 
 
