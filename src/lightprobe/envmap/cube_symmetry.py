@@ -179,7 +179,9 @@ def _back_subsamples(row, col, n, k, h, w, columns, eye, latlong, pfs, pxs, pys,
                             pws, m, wsum)
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+# Compiled apart, not inlined, as fused._subsamples is and for the same reason (compile time); the kernels pass its
+# arguments that could be constants as np.int64, so it compiles once.
+@njit(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})
 def _orbit(src, levels, reduced, row_offsets, caps, n, k, kinds, base, row, col, images, count, out, top,
            work, columns):  # pragma: no cover - compiled
     """Target pixel (base, row, col)'s footprint, computed once, read for each of its ``count`` images:
@@ -191,7 +193,7 @@ def _orbit(src, levels, reduced, row_offsets, caps, n, k, kinds, base, row, col,
         taps, wsum = _back_subsamples(row, col, n, k, h, w, columns, eye, latlong, pfs, pxs, pys, pws)
     else:
         taps, wsum = _subsamples(cube, eye, base, row, col, n, n, (k, k, k, k, k, k), eye, latlong, eye, h, w, pfs,
-                                 pxs, pys, pws)
+                                 pxs, pys, pws, np.int64(0))
     kind, c0, r0, tw, th = _base_tile(levels, caps, h, w, pxs, pys, pws, taps, scratch, tile)
     for i in range(count):
         face, r, c, shift, mirror = images[i, 0], images[i, 1], images[i, 2], images[i, 3], images[i, 4] == 1
@@ -210,7 +212,7 @@ def _orbit(src, levels, reduced, row_offsets, caps, n, k, kinds, base, row, col,
             out[face, r - top, c, ch] = acc[ch]
         if kind != NO_TILE:  # the general path used the scratch: the tile is rebuilt for the other images
             taps, wsum = _subsamples(cube, eye, base, row, col, n, n, (k, k, k, k, k, k), eye, latlong, eye, h, w, pfs,
-                                 pxs, pys, pws)
+                                 pxs, pys, pws, np.int64(0))
             kind, c0, r0, tw, th = _base_tile(levels, caps, h, w, pxs, pys, pws, taps, scratch, tile)
 
 
@@ -250,16 +252,16 @@ def cube_rows_into(src, levels, reduced, row_offsets, caps, n, k, kinds, poles, 
                 for m in range(mirrors):
                     count = _image(images, count, SIDE_FACES[i, 0], row, n - 1 - col if m else col,
                                    SIDE_FACES[i, 1] * (w // 4), m)
-            _orbit(src, levels, reduced, row_offsets, caps, n, k, kinds, BACK, row, col, images, count, out, top, work,
-                   columns)
+            _orbit(src, levels, reduced, row_offsets, caps, n, k, kinds, np.int64(BACK), row, col, images,
+                   np.int64(count), out, top, work, columns)
             if not poles:
                 continue
             for base in (TOP, BOTTOM):
                 count = _image(images, 0, base, row, col, 0, 0)
                 if mirrors == 2:
                     count = _image(images, count, base, row, n - 1 - col, 0, 1)
-                _orbit(src, levels, reduced, row_offsets, caps, n, k, kinds, base, row, col, images, count, out, top,
-                       work, columns)
+                _orbit(src, levels, reduced, row_offsets, caps, n, k, kinds, base, row, col, images, np.int64(count),
+                       out, top, work, columns)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})
@@ -279,5 +281,5 @@ def polar_faces_into(src, levels, reduced, row_offsets, caps, n, k, kinds, out, 
                     count = _image(images, count, base, r, c, turn * (w // 4), 0)
                     count = _image(images, count, base, r, n - 1 - c, (4 - turn) % 4 * (w // 4), 1)
                     r, c = (c, n - 1 - r) if base == TOP else (n - 1 - c, r)
-                _orbit(src, levels, reduced, row_offsets, caps, n, k, kinds, base, r0, c0, images, count, out, 0,
-                       work, columns)
+                _orbit(src, levels, reduced, row_offsets, caps, n, k, kinds, base, r0, c0, images, np.int64(count), out,
+                       np.int64(0), work, columns)

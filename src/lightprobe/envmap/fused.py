@@ -984,7 +984,7 @@ RIM_SHORT = 2.0
 RIM_SHORT_REACH = 0.5 * math.pi  # ... within this of the rim direction (the ball's back half)
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy", fastmath=False)  # apart for compile time (see _subsamples); as its callers
 def _rim_radial(tgt_kind, tgt_axes, rho_lo, rho_hi, centre, rotation, src_kind, src_axes, src_h,
                 src_w):  # pragma: no cover - compiled
     """Source pixels a disc pixel spanning ``rho_lo`` … ``rho_hi`` covers radially, along angle ``centre``
@@ -1105,13 +1105,13 @@ def _rim_subsamples(tgt_kind, tgt_axes, row, col, h, w, rotation, src_kind, src_
         weight = -d_rho * d_rho * _arc_inside(RIM_R, a0, a1, b0, b1, centre, cuts, m) / 96.0
         if weight < 0.0:
             _store_rim_subsample(tgt_kind, 0.0, centre, weight, tgt_axes, rotation, src_kind, src_axes, src_h,
-                                 src_w, pfs, pxs, pys, pws, n)
+                                 src_w, pfs, pxs, pys, pws, np.int64(n))
             wsum += weight
             n += 1
     return n, wsum
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy", fastmath=False)  # apart for compile time (see _subsamples); as its callers
 def _store_rim_subsample(tgt_kind, rho, alpha, weight, tgt_axes, rotation, src_kind, src_axes, src_h, src_w, pfs,
                          pxs, pys, pws, n):  # pragma: no cover - compiled
     """Store subsample ``n``: the disc's point (``rho``, ``alpha``) (:func:`_rim_point`) as a source position,
@@ -1156,7 +1156,7 @@ def _arc_samples(tgt_kind, rho, area, per_row, a0, a1, b0, b1, centre, cuts, m, 
         weight = area * length / (inside * count)
         for q in range(count):
             _store_rim_subsample(tgt_kind, rho, centre + cuts[j] + (q + 0.5) * length / count, weight, tgt_axes,
-                                 rotation, src_kind, src_axes, src_h, src_w, pfs, pxs, pys, pws, n)
+                                 rotation, src_kind, src_axes, src_h, src_w, pfs, pxs, pys, pws, np.int64(n))
             wsum += weight
             n += 1
     return n, wsum
@@ -1217,9 +1217,16 @@ def _cube_edge_terms(tgt_axes, face, row, col, h, w, rates, rotation, src_kind, 
     return n, wsum
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+# Compiled apart, not inlined: numba inlines an ``inline="always"`` function by copying its IR, its own inlined
+# callees included, into each call site, and this one (every layout's formulas, a cube's edge terms) sat in every
+# kernel and twice in each cube orbit — most of the compile time (a first lat-long → cube convert compiled for
+# ~5 min; 51 s with it and the orbit, the rim's radial step and its subsample store apart). One call per pixel costs
+# 4–7 % of a 2048×1024 → 6×512² conversion, 1–2 % into a disc; the values are the same. Its callers pass np.int64(…) where an argument
+# could be a constant: numba compiles a callee once for each literal value it is called with. It runs in every
+# caller with the kernels' fastmath, as it did inlined.
+@njit(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})
 def _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, rates, rotation, src_kind, src_axes, src_h, src_w, pfs, pxs,
-                pys, pws, rim_k_max=0):  # pragma: no cover - compiled
+                pys, pws, rim_k_max):  # pragma: no cover - compiled
     """One target pixel's subsamples — ku × kv, its cells graded towards its neighbours' rates (:func:`_graded`);
     ``rates`` = (ku, kv, ku left, ku right, kv above, kv below) (:func:`_pixel_rates`, or k six times): their
     source positions (pfs, pxs, pys) and weights ``dω/(du dv)`` × cell area (pws), those off a disc left out;
@@ -1594,8 +1601,8 @@ def _pixel(src_kind, src, valid, levels, reduced, row_offsets, caps, src_axes, s
            acc, rim_k_max):  # pragma: no cover - compiled
     """``acc`` = the value of target pixel (face, row, col) of an h × w face at ``rates``
     (:func:`_subsamples`, ``rim_k_max`` as there; :func:`resample_into`'s arguments; the rest is scratch)."""
-    n, wsum = _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, rates, rotation, src_kind, src_axes, src_h,
-                          src_w, pfs, pxs, pys, pws, rim_k_max)
+    n, wsum = _subsamples(tgt_kind, tgt_axes, np.int64(face), row, col, h, w, rates, rotation, src_kind, src_axes,
+                          src_h, src_w, pfs, pxs, pys, pws, np.int64(rim_k_max))
     acc[0], acc[1], acc[2] = 0.0, 0.0, 0.0
     tiled = src_kind == LATLONG or src_kind == CUBE  # sources whose taps are all valid (no renormalisation)
     if not (tiled and _same_face(pfs, n)
@@ -1826,8 +1833,8 @@ def _pixel_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, caps
                 idx, wts):  # pragma: no cover - compiled
     """One target pixel's taps into ``idx``/``wts`` (its row of the rates already in ``rates``); returns how many."""
     here = _pixel_rates(rates, src_kind, tgt_kind, row, col, h, w, k, k_max)
-    n, wsum = _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, here, rotation, src_kind, src_axes,
-                          src_h, src_w, pfs, pxs, pys, pws, k_max if k_max > k else 0)
+    n, wsum = _subsamples(tgt_kind, tgt_axes, np.int64(face), row, col, h, w, here, rotation, src_kind, src_axes,
+                          src_h, src_w, pfs, pxs, pys, pws, np.int64(k_max if k_max > k else 0))
     scale = 1.0 / wsum
     t = -1
     if (src_kind == LATLONG or src_kind == CUBE) and _same_face(pfs, n):
