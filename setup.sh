@@ -68,7 +68,7 @@ if command -v npm >/dev/null && [ "$(cat "$lock" 2>/dev/null)" != "$(sha256sum e
   fi
 fi
 
-# Compile lightprobe's numba kernels here, once, rather than in the first command (about three minutes on 2 cores; the
+# Compile lightprobe's numba kernels here, once, rather than in the first command (three to four minutes on 2 cores; the
 # demo's own run is then warm). Again only when the sources changed or numba's cache folder is gone.
 stamp=".venv/.lightprobe-kernels"
 sources="$(cat src/lightprobe/*.py src/lightprobe/*/*.py | sha256sum | cut -c1-16)"
