@@ -1220,10 +1220,10 @@ def _cube_edge_terms(tgt_axes, face, row, col, h, w, rates, rotation, src_kind, 
 # Compiled apart, not inlined: numba inlines an ``inline="always"`` function by copying its IR, its own inlined
 # callees included, into each call site, and this one (every layout's formulas, a cube's edge terms) sat in every
 # kernel and twice in each cube orbit — most of the compile time (a first lat-long → cube convert compiled for
-# ~5 min; 51 s with it and the orbit, the rim's radial step and its subsample store apart). One call per pixel costs
-# 4–7 % of a 2048×1024 → 6×512² conversion, 1–2 % into a disc; the values are the same. Its callers pass np.int64(…) where an argument
-# could be a constant: numba compiles a callee once for each literal value it is called with. It runs in every
-# caller with the kernels' fastmath, as it did inlined.
+# ~5 min; 51 s with it and the orbit, the rim's radial step and its subsample store apart). One call per pixel
+# costs 4–7 % of a 2048×1024 → 6×512² conversion, 1–2 % into a disc; the values are the same. Its callers pass
+# np.int64(…) where an argument could be a constant: numba compiles a callee once for each literal value it is
+# called with. It runs in every caller with the kernels' fastmath, as it did inlined.
 @njit(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})
 def _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, rates, rotation, src_kind, src_axes, src_h, src_w, pfs, pxs,
                 pys, pws, rim_k_max):  # pragma: no cover - compiled
