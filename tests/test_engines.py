@@ -16,8 +16,9 @@ import numpy as np
 import pytest
 
 from conftest import shared
-from lightprobe.engines import (LUMINANCE, Browser, Server, babylon, babylon_irradiance_over_pi, band1_angle,
-                                coefficient_difference, missing_engines, relative)
+from lightprobe.engines import (ENGINES, LUMINANCE, Browser, Server, babylon, babylon_bundle,
+                                babylon_irradiance_over_pi, band1_angle, coefficient_difference, missing_engines,
+                                relative)
 from lightprobe.envmap import EnvMap, read_envmap
 from lightprobe.errors import LightprobeWarning
 from lightprobe.export import export
@@ -478,3 +479,28 @@ def test_print_the_engine_table():
             print(f"| mean |Δ|/mean | {probe} | {r} | {shown(figures['env'][i])} | {shown(figures['glb'][i])} | "
                   f"{shown(spread[i])} |")
     assert json.dumps({str(k): v for k, v in RESULTS.items()})
+
+
+def test_the_babylon_page_is_bundled_again_when_its_script_or_the_lock_changes(tmp_path):
+    """babylon.html runs engines/dist, esbuild's join of babylon_page.mjs and the Babylon modules it imports: a bundle
+    whose stamp does not match the script and package-lock.json is built again, with the page's entry points. (In a
+    copy of the folder: other test workers may be drawing from the repository's bundle meanwhile.)"""
+    if missing_engines():
+        pytest.fail(f"the engine tests need {', '.join(missing_engines())}: run 'bash setup.sh --test'",
+                    pytrace=False)
+    for name in ("babylon_page.mjs", "package-lock.json"):
+        (tmp_path / name).write_bytes((ENGINES / name).read_bytes())
+    (tmp_path / "node_modules").symlink_to(ENGINES / "node_modules")
+    dist = babylon_bundle(tmp_path)
+    stamp = (dist / ".stamp").read_text()
+    assert babylon_bundle(tmp_path) == dist and (dist / ".stamp").read_text() == stamp  # fresh: kept
+    (dist / ".stamp").write_text("stale")
+    assert (babylon_bundle(tmp_path) / ".stamp").read_text() == stamp
+    with open(tmp_path / "babylon_page.mjs", "a") as script:
+        script.write("\nwindow.changed = true;\n")
+    dist = babylon_bundle(tmp_path)
+    assert (dist / ".stamp").read_text() != stamp and "window.changed" in (dist / "babylon_page.js").read_text()
+    page = (dist / "babylon_page.js").read_text()
+    assert "window.lightprobe" in page and "HDRCubeTexture" in page
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["babylon_page.mjs", "dist", "node_modules",
+                                                        "package-lock.json"]  # nothing left behind
