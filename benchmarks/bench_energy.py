@@ -1,7 +1,7 @@
 """Energy of a one-pixel sun through every conversion: issue 9's accuracy bar (∫L dω within 0.2 %) measured on
 directions nobody chose, beside the ones the tests pin down.
 
-    python benchmarks/bench_energy.py [--suns 40] [--seed 11] [--part all|balance|flux]
+    python benchmarks/bench_energy.py [--suns 40] [--seed 11] [--part all|balance|flux|rows]
 
 For each source layout (a 128-row lat-long, 64² cube faces, 128² angular and mirror-ball maps) and each target
 layout at sizes 16, 32 and 64 (unturned), two tables:
@@ -11,11 +11,11 @@ layout at sizes 16, 32 and 64 (unturned), two tables:
 - every pixel: the gain of a sun in each source pixel, relative to the sun's own ∫L dω, for all pixels at once —
   exact, from the conversion's weights (:meth:`lightprobe.envmap.Resampler.energy_gains`). Random suns miss the
   few pixels where a conversion goes wrong (a cube's edges, the rim side of a disc); this table does not.
-Then the every-pixel measure at full size (cube 256–512, discs 1024, targets 256–1024), what each pixel's own
-subsample rate costs against one rate for the whole map, what a cube source's texel balance costs
-(:mod:`lightprobe.envmap.balance`: its weights once per size, then one pass over the faces), and what the flux
-correction costs (:mod:`lightprobe.envmap.flux`: the conversion's adjoint and the flows once per pair of grids and
-process, then one pass over the source).
+Then the every-pixel measure at full size (cube 256–512, discs 1024, targets 256–1024), lat-longs into discs as a
+map too large for the flux correction has them (``--part rows``), what each pixel's own subsample rate costs against
+one rate for the whole map, what a cube source's texel balance costs (:mod:`lightprobe.envmap.balance`: its weights
+once per size, then one pass over the faces), and what the flux correction costs (:mod:`lightprobe.envmap.flux`: the
+conversion's adjoint and the flows once per pair of grids and process, then one pass over the source).
 Suns within 25° of a disc's rim direction (where one direction is a ring of pixels) are left out, in the source and
 in the target.
 """
@@ -73,11 +73,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--suns", type=int, default=40)
     parser.add_argument("--seed", type=int, default=11)
-    parser.add_argument("--part", choices=("all", "balance", "flux"), default="all",
-                        help="'balance' or 'flux': only that correction's cost table")
+    parser.add_argument("--part", choices=("all", "balance", "flux", "rows"), default="all",
+                        help="'balance' or 'flux': only that correction's cost table; 'rows': only lat-longs into "
+                             "discs without it")
     args = parser.parse_args()
     if args.part != "all":
-        {"balance": balance_cost, "flux": flux_cost}[args.part]()
+        {"balance": balance_cost, "flux": flux_cost, "rows": rows_alone}[args.part]()
         return
     suns = directions(args.suns, args.seed)
     print(f"one-pixel sun (10× the sky's power), {len(suns)} directions ({args.suns} random, 8 at the poles)")
@@ -99,6 +100,7 @@ def main() -> None:
                       f"{errors.max():7.3f}% {np.median(errors):7.3f}%  {(errors > 0.2).sum():3d}")
     every_pixel()
     full_size()
+    rows_alone()
     rate_cost()
     balance_cost()
     flux_cost()
@@ -143,6 +145,25 @@ def full_size() -> None:
                                        rotation=turn))
         label = f"{name} {size} → {target} {out_size}" + (" turned" if turn is not None else "")
         print(f"  {label:34s} {gains.max():7.3f}% {np.percentile(gains, 99.9):7.3f}%  {(gains > 0.2).mean() * 100:7.3f} %")
+
+
+ROWS_ALONE = [("latlong", 512, "sphere", 233), ("latlong", 1100, "sphere", 500), ("latlong", 256, "angular", 408),
+              ("latlong", 1024, "angular", 1634)]
+
+
+def rows_alone() -> None:
+    """Lat-long sources into discs without the flux correction and with no margin by the rim direction: what a
+    lat-long larger than 2048×1024 keeps (it is not flux-corrected), at the ratios of source to target a 4k map has
+    into its default-sized discs. Seconds each, so the demo leaves them here."""
+    print("\nlat-long into discs, no flux correction, no margin by the rim direction (as a lat-long over 2048×1024)")
+    print(f"  {'conversion':34s} {'worst':>8s} {'99.9th':>8s}  over 0.2 %")
+    src_layout = layout("latlong")
+    for _, size, target, out_size in ROWS_ALONE:
+        resampler = Resampler(src_layout, src_layout.grid_shape(size), layout(target), out_size)
+        gains = resampler.without_flux_correction().energy_gains()
+        gains = np.abs(gains[np.isfinite(gains)]) * 100
+        label, over = f"latlong {2 * size}×{size} → {target} {out_size}", (gains > 0.2).mean() * 100
+        print(f"  {label:34s} {gains.max():7.3f}% {np.percentile(gains, 99.9):7.3f}%  {over:7.3f} %")
 
 
 RATE_COST = [("angular", 1000, "latlong", 1024), ("sphere", 1000, "latlong", 1024), ("angular", 1000, "cube", 512),

@@ -117,6 +117,8 @@ def section_layouts(rep: Report) -> str:
 
 def section_speed(rep: Report) -> str:
     """Conversion and projection speed as ratios measured here, and the energy a one-pixel sun keeps."""
+    from concurrent.futures import ThreadPoolExecutor
+
     from .envmap import Resampler, resample
     from .layouts import CUBE, LATLONG
 
@@ -141,16 +143,22 @@ def section_speed(rep: Report) -> str:
     for l_max in (2, 8, 16):
         project(big, l_max, compiled=True)
         best(f"sh{l_max}", lambda: project(big, l_max, compiled=True), repeat=5)
-    sun_map = _one_pixel_sun(big.grid, np.ones(3) / np.sqrt(3))  # on a cube corner
-    sun_error = float(np.abs(conv(sun_map).integral() / sun_map.integral() - 1).max())
-    polar = _polar_sun_errors()
-    pole_rows = _pole_row_targets()
-    pole_detail = _pole_detail()
+    # the memory figure's convert runs in its own process beside the accuracy figures below (its peak is its own;
+    # nothing timed runs meanwhile)
+    with ThreadPoolExecutor(1) as beside:
+        memory = beside.submit(_convert_peak_memory, big, rep.out)
+        sun_map = _one_pixel_sun(big.grid, np.ones(3) / np.sqrt(3))  # on a cube corner
+        sun_error = float(np.abs(conv(sun_map).integral() / sun_map.integral() - 1).max())
+        polar = _polar_sun_errors()
+        pole_rows = _pole_row_targets()
+        pole_detail = _pole_detail()
+        every_pixel = _every_pixel_gains()
+        gain_pictures = _gain_pictures(rep)
+        memory = memory.result()
     rep.timings.update({f"speed {k}": v for k, v in timed.items()})
-    memory = _convert_peak_memory(big, rep.out)
     rows = [["lat-long 2048×1024 → cube 6×512², one compiled pass (each footprint read for its 8 images under "
              "the cube's symmetries)", f"{1000 * timed['direct']:.0f} ms",
-             f"{timed['direct'] / timed['pass']:.1f}× one numpy pass over the source (the benchmark: 2.5–2.6× a "
+             f"{timed['direct'] / timed['pass']:.1f}× one numpy pass over the source (the benchmark: 2.75–2.9× a "
              "plain numpy nearest-pixel resampler)"],
             ["the same with its footprint weights cached (built once: "
              f"{1000 * timed['build']:.0f} ms, {conv.nbytes / 2**20:.0f} MiB)", f"{1000 * timed['cached']:.0f} ms",
@@ -158,13 +166,11 @@ def section_speed(rep: Report) -> str:
             *[[f"SH projection, order {l}", f"{1000 * timed[f'sh{l}']:.1f} ms",
                f"{timed[f'sh{l}'] / timed['pass']:.1f}× one numpy pass over the pixels"] for l in (2, 8, 16)],
             ["peak resident memory of lightprobe convert, that map into a cube, in a fresh process",
-             f"{memory['released']:.0f} MiB", f"{memory['kept']:.0f} MiB with LLVM's pages kept resident (its "
-             "kernels linked on the map itself, not on a small one first); a 4096×2048 map: 260 against 321 MiB, "
-             "2.7× the map (tests/test_limits.py)"],
-            ["the same into an angular map", f"{memory['angular']:.0f} MiB",
-             "its disc's valid-pixel table read where the layout keeps it, not copied, and the kernels linked on a "
-             "small map that is not flux-corrected, as the big one is not; a 4096×2048 map: 259 MiB, was 273 "
-             "(2.7×; 271 and 288.5 in a fresh install, whose libraries keep ~14 MiB more pages resident)"]]
+             f"{memory:.0f} MiB", "most of it the libraries (numpy, OpenImageIO, numba's LLVM); its kernels linked "
+             "on a small map first, then LLVM's pages let go. A 4096×2048 map in a fresh install: 270 MiB into a "
+             "cube, 271 into an angular map, 2.8× (tests/test_limits.py holds them within 3×). A map of this size "
+             "into a disc is flux-corrected: the stencil, built once per pair of grids, takes it to ~390 MiB and "
+             "5–8 s (into an angular map of 1634)"]]
     return ("<h2>Speed</h2><p>Measured now, on this machine, as ratios (the benchmarks compare with peers: "
             "<code>benchmarks/bench_peers.py</code>). A batch of maps of one size converts with cached footprint "
             "weights: one gather per map. The accuracy is the same: a sun in one pixel on a cube corner, holding "
@@ -197,8 +203,8 @@ def section_speed(rep: Report) -> str:
               "source.</p>"
             + table(["conversion", "worst", "pixels over 0.2 %"],
                     [[label, f"{100 * worst:.3f} %", f"{100 * share:.1f} %"]
-                     for label, (worst, share) in _every_pixel_gains().items()])
-            + '<div class="grid">' + _gain_pictures(rep) + "</div>"
+                     for label, (worst, share) in every_pixel.items()])
+            + '<div class="grid">' + gain_pictures + "</div>"
             + "<p>Where a target pixel's rate differs from its neighbours', its cells are graded so the lookups' "
               "spacing does not jump (it left rings of pixels up to ~1 % off), and target pixels round a cube "
               "source's vertices, read across a jump where three faces meet, take 16 subsamples a side. A cube "
@@ -220,11 +226,9 @@ def section_speed(rep: Report) -> str:
               "20–40° and no rate helps (0.26–0.74 % before) (<code>benchmarks/bench_energy.py</code>).</p>")
 
 
-def _convert_peak_memory(env, folder) -> dict[str, float]:
-    """Peak resident memory (MiB) of ``lightprobe convert`` of ``env`` in a fresh process, each measured by
-    :func:`lightprobe.peak.run_measured`: into a cube as it runs (kernels linked on a small map, then LLVM's pages
-    let go: :func:`lightprobe.jit.release_compiler_pages`), and with that step left out (what it removes); into an
-    angular map as it runs (a disc: its valid-pixel table)."""
+def _convert_peak_memory(env, folder) -> float:
+    """Peak resident memory (MiB) of ``lightprobe convert`` of ``env`` into a cube in a fresh process, measured by
+    :func:`lightprobe.peak.run_measured`."""
     import sys
 
     from .io import write_image
@@ -232,18 +236,14 @@ def _convert_peak_memory(env, folder) -> dict[str, float]:
 
     src, dst = folder / "convert_memory.exr", folder / "convert_memory_out.exr"
     write_image(src, env.data)
-    peaks = {}
-    for mode, step, target in (("released", "", "cube"), ("kept", "convert._link_kernels = lambda *args: None\n",
-                                                          "cube"), ("angular", "", "angular")):
-        command = ("import sys\nimport lightprobe.cli.convert as convert\n" + step
-                   + "from lightprobe.cli import main\nsys.exit(main(sys.argv[1:]))\n")
-        res, peaks[mode] = run_measured([sys.executable, "-c", command, "convert", str(src), str(dst), "--to", target],
-                                        env={"LIGHTPROBE_PROGRESS": "0"})
-        if res.returncode:
-            raise RuntimeError(f"convert for the memory figure failed: {res.stderr.strip()[-300:]}")
+    command = "import sys\nfrom lightprobe.cli import main\nsys.exit(main(sys.argv[1:]))\n"
+    res, peak = run_measured([sys.executable, "-c", command, "convert", str(src), str(dst), "--to", "cube"],
+                             env={"LIGHTPROBE_PROGRESS": "0"})
+    if res.returncode:
+        raise RuntimeError(f"convert for the memory figure failed: {res.stderr.strip()[-300:]}")
     src.unlink()
     dst.unlink()
-    return peaks
+    return peak
 
 
 @functools.lru_cache(maxsize=4)
@@ -291,18 +291,14 @@ def _every_pixel_gains() -> dict[str, tuple[float, float]]:
              ("cube 64 → cube 64 (corner texels: was 4.6 %; 0.86 % before the texel balance, 0.13 % before the "
               "flux correction)", "cube", 64, "cube", 64),
              ("cube 64 → lat-long 32 (2.4 % before the flux correction)", "cube", 64, "latlong", 32),
-             ("cube 256 → lat-long 512 (1.6 % before graded cells, 0.40 % before the texel balance, 0.30 % before "
-              "the flux correction)", "cube", 256, "latlong", 512),
+             ("cube 128 → lat-long 256 (at 256 → 512: 1.6 % before graded cells, 0.40 % before the texel balance, "
+              "0.30 % before the flux correction)", "cube", 128, "latlong", 256),
              ("cube 64 → mirror ball 64, no margin (was 40 % within 25° of the ball's rim direction)", "cube", 64,
               "sphere", 64, None),
              ("lat-long 128 → mirror ball 64, no margin (was 55 % there)", "latlong", 128, "sphere", 64, None),
              ("lat-long 256 → mirror ball 128, no margin (33 % by the rim direction before its rim pixels were "
               "sampled round it, 0.19 % by them alone, before its flux correction)", "latlong", 256, "sphere", 128,
               None),
-             ("lat-long 1024×512 → mirror ball 233, no margin, its rows alone (without its flux correction, as a "
-              "lat-long over 2048×1024 has them: 2200×1100 → 500 reads 0.145 %, 0.28 % before lookups 0.35 source "
-              "pixels apart and long ring pixels read round the rim direction; 18 s to measure, so not here)",
-              "latlong", 512, "sphere", 233, None, {"uncorrected": True}),
              ("lat-long 512×256 → angular 408, no margin, its rows alone (without its flux correction: the ratio of "
               "a 4k lat-long into its default angular map, 3268, which is not corrected; 0.27 % by the rim "
               "direction before the pixels just inside took lookups closer there)", "latlong", 256, "angular", 408,
@@ -312,8 +308,8 @@ def _every_pixel_gains() -> dict[str, tuple[float, float]]:
              ("angular 256 → lat-long 128, no margin (was 555 % within 2° of the angular map's rim direction, left "
               "uncorrected within 20° until the pixels there were read round it)", "angular", 256, "latlong", 128,
               None),
-             ("mirror ball 512 → angular 128, no margin (its ring read round its rim direction)", "sphere", 512,
-              "angular", 128, None))
+             ("mirror ball 256 → angular 64, no margin (its ring read round its rim direction)", "sphere", 256,
+              "angular", 64, None))
     out = {}
     for label, source, size, target, out_size, *options in cases:  # the margin (25° unless given), then _pair_gains'
         margin, settings = (options + [25.0, {}][len(options):])[:2]  # keyword settings (turn, uncorrected), if any
@@ -625,19 +621,21 @@ def section_engines(rep: Report) -> str:
         babylon = _babylon_figures(panorama, export(sh, "babylon"))
         page = browser.page("babylon.html")
         polynomial = json.loads(export(sh, "babylon"))["polynomial"]
+        # toward the light, away from it, and the container spheres' view, all from one load of each environment
+        eyes = (babylon["sun"], -babylon["sun"], CONTAINER_EYE_LIFT + 0.6 * babylon["sun"])
+        views = [{"eye": eye.tolist(), "exposure": 0.5 / babylon["peak"], "roughness": None} for eye in eyes]
+        shots = {"ours": page.evaluate("([p, v]) => window.lightprobe.views('polynomial', [p], v, true)",
+                                       [polynomial, views[:2]]),
+                 "Babylon": page.evaluate("([u, v]) => window.lightprobe.views('panorama', [u, 512], v, true)",
+                                          [f"{server.url}/files/probe.hdr", views])}
         for away in (False, True):
-            eye = (-babylon["sun"] if away else babylon["sun"]).tolist()
             for label in ("ours", "Babylon"):
-                call = ("([p, e, x]) => window.lightprobe.polynomial(p, e, x, true)", [polynomial, eye, 0.5 / babylon["peak"]]) \
-                    if label == "ours" else ("([u, e, x]) => window.lightprobe.panorama(u, 512, e, x, true)",
-                                             [f"{server.url}/files/probe.hdr", eye, 0.5 / babylon["peak"]])
-                url = page.evaluate(*call)
                 name = f"engine_babylon_{'ours' if label == 'ours' else 'own'}_{'away' if away else 'toward'}"
-                write_bytes(rep.out / f"{name}.png", base64.b64decode(url.split(",", 1)[1]))
+                write_bytes(rep.out / f"{name}.png", base64.b64decode(shots[label][away].split(",", 1)[1]))
                 lit = "our polynomial" if label == "ours" else "its own HDRCubeTexture"
                 pictures.append(figure(name, f"Babylon.js PBR: {lit}, {'away from' if away else 'toward'} the light",
                                        200))
-        containers, container_text = _babylon_containers(rep, page, server, folder, sh, babylon)
+        containers, container_text = _babylon_containers(rep, page, server, folder, sh, babylon, shots["Babylon"][2])
         pictures += _filament_spheres(rep, browser, server, folder, sh, babylon["sun"] * np.array([1, 1, -1]))
     finally:
         browser.close()
@@ -662,6 +660,7 @@ def section_engines(rep: Report) -> str:
             + container_text + '<div class="grid">' + "".join(containers) + "</div>")
 
 
+CONTAINER_EYE_LIFT = np.array([0.0, 0.4, 0.0])  # the container spheres are seen from 0.6 × the light's side + this
 CONTAINER_SIZE = 64  # the report's .env and .glb (as the engine tests'): Babylon's own GPU prefilter of the
 # panorama, beside which the metal sphere is shown, takes ~6 s in SwiftShader at 128² and keeps the demo over a minute
 
@@ -692,10 +691,12 @@ def _filament_spheres(rep: Report, browser, server, folder: Path, sh, sun: np.nd
     return pictures
 
 
-def _babylon_containers(rep: Report, page, server, folder: Path, sh, babylon: dict) -> tuple[list[str], str]:
+def _babylon_containers(rep: Report, page, server, folder: Path, sh, babylon: dict,
+                        own_diffuse: str) -> tuple[list[str], str]:
     """Our .env and .glb of the probe in Babylon: a white metal sphere (roughness 0.3) from our .env's mips beside
     one from Babylon's own GPU prefilter of the panorama, and the diffuse sphere from our .glb through its glTF
-    loader beside the one from its own HDRCubeTexture."""
+    loader beside ``own_diffuse``, the one from its own HDRCubeTexture (a PNG data URL, drawn with the section's
+    other views of that texture)."""
     import base64
     import io
     import warnings
@@ -720,17 +721,17 @@ def _babylon_containers(rep: Report, page, server, folder: Path, sh, babylon: di
         write_bytes(folder / name, data)
     url = f"{server.url}/files/"
     peak = float(prefilter_cube(env, 32, [0] + [0.09] * 5).levels[1].max())
-    eye = (0.6 * babylon["sun"] + np.array([0.0, 0.4, 0.0])).tolist()
+    eye = (CONTAINER_EYE_LIFT + 0.6 * babylon["sun"]).tolist()
     shots, pictures, images = [
         ("engine_babylon_env_metal", "env", [url + "probe.env"], 0.3, "our .env, metal roughness 0.3"),
         ("engine_babylon_own_metal", "prefiltered", [url + "probe.hdr", CONTAINER_SIZE], 0.3,
          "its own prefilter, metal roughness 0.3"),
         ("engine_babylon_glb_diffuse", "gltf", [url + "probe.glb"], None, "our .glb through its glTF loader"),
-        ("engine_babylon_own_diffuse", "panorama", [url + "probe.hdr", 512], None, "its own HDRCubeTexture")], [], {}
+        ("engine_babylon_own_diffuse", None, None, None, "its own HDRCubeTexture")], [], {}
     for name, source, args, roughness, caption in shots:
         exposure = 0.6 / peak if roughness is not None else 0.5 / babylon["peak"]
-        data_url = page.evaluate("([s, a, e, x, r]) => window.lightprobe.sphere(s, a, e, x, r, true)",
-                                 [source, args, eye, exposure, roughness])
+        call = "([s, a, e, x, r]) => window.lightprobe.sphere(s, a, e, x, r, true)"
+        data_url = own_diffuse if source is None else page.evaluate(call, [source, args, eye, exposure, roughness])
         png = base64.b64decode(data_url.split(",", 1)[1])
         write_bytes(rep.out / f"{name}.png", png)
         pictures.append(figure(name, f"Babylon.js PBR: {caption}", 200))
@@ -916,15 +917,18 @@ def section_glossy(rep: Report) -> str:
                 f"is not available ({html.escape(str(e))}).</p>")
     rows, pictures = [], []
     objects = _glossy_objects(rep)
+    # one set of methods for every object: each caches its bake per environment and BRDF, so a material's radiance
+    # maps and prefiltered cube are made once, not once per object
+    rsibr = method("rsibr", map_size=32)
+    shared = {"rsibr": rsibr, "rsibr --per-pixel-view": method("rsibr", map_size=32, per_pixel_view=True),
+              "splitsum": method("splitsum", cube_size=32)}
+    shared["rsibr --per-pixel-view"].radiance_set = rsibr.radiance_set  # one bake for both
     for (obj, base), spec in ((o, spec) for o in objects for spec in GLOSSY_DEMO):
         mesh = base.meshes[0]
         scene = replace(base, meshes=(replace(mesh, material=replace(mesh.material, brdf=parse_brdf(spec))),))
         tracer = Tracer(scene)
-        rsibr = method("rsibr", map_size=32)
-        methods = {"rsibr": rsibr, "rsibr --per-pixel-view": method("rsibr", map_size=32, per_pixel_view=True)}
-        if spec.startswith("ggx"):  # the split sum is GGX's (engines add a separate diffuse term for a plastic)
-            methods["splitsum"] = method("splitsum", cube_size=32)
-        methods["rsibr --per-pixel-view"].radiance_set = rsibr.radiance_set  # one bake for both
+        # the split sum is GGX's (engines add a separate diffuse term for a plastic)
+        methods = {name: m for name, m in shared.items() if name != "splitsum" or spec.startswith("ggx")}
         results = {name: render(scene, m, 2, tracer) for name, m in methods.items()}
         results["reference"] = reference_render(scene, spp=96)
         ref = results["reference"].image
