@@ -24,8 +24,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..jit import njit
-from .fused import (CUBE, LATLONG, TILE, _cube_edge_terms, _polar_tile, _row_frame, _subsamples, _sum_into_tile,
-                    _tile_bounds, atan2, _wrapped_column, pixel_into, slots)
+from .fused import (CUBE, KERNEL_FASTMATH, LATLONG, TILE, _cube_edge_terms, _polar_tile, _row_frame, _subsamples,
+                    _sum_into_tile, _tile_bounds, atan2, _wrapped_column, pixel_into, slots)
 
 # The side faces as images of −Z (face 5) under quarter turns of yaw: (face, turns); a turn is +W/4 columns.
 SIDE_FACES = np.array([[5, 0], [0, 1], [4, 2], [1, 3]], dtype=np.int64)
@@ -181,7 +181,7 @@ def _back_subsamples(row, col, n, k, h, w, columns, eye, latlong, pfs, pxs, pys,
 
 # Compiled apart, not inlined, as fused._subsamples is and for the same reason (compile time); the kernels pass its
 # arguments that could be constants as np.int64, so it compiles once.
-@njit(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})
+@njit(cache=True, error_model="numpy", fastmath=KERNEL_FASTMATH)
 def _orbit(src, levels, reduced, row_offsets, caps, n, k, kinds, base, row, col, images, count, out, top,
            work, columns):  # pragma: no cover - compiled
     """Target pixel (base, row, col)'s footprint, computed once, read for each of its ``count`` images:
@@ -229,7 +229,7 @@ def _kinds() -> np.ndarray:
     return np.array([LATLONG, CUBE], np.int64)
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=KERNEL_FASTMATH)
 def cube_rows_into(src, levels, reduced, row_offsets, caps, n, k, kinds, poles, out, top, first,
                    last):  # pragma: no cover - compiled
     """Fill rows ``first`` … ``last − 1`` of ``out`` (6, R, n, 3) float32 — image rows ``top + first`` … of the
@@ -264,7 +264,7 @@ def cube_rows_into(src, levels, reduced, row_offsets, caps, n, k, kinds, poles, 
                        out, top, work, columns)
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=KERNEL_FASTMATH)
 def polar_faces_into(src, levels, reduced, row_offsets, caps, n, k, kinds, out, first, last):  # pragma: no cover
     """Fill faces +Y and −Y of ``out`` (6, n, n, 3) whole, through their eight symmetries (quarter turns about the
     pole — a turn is (row, column) → (column, n − 1 − row) on +Y, (n − 1 − column, row) on −Y, and W/4 source

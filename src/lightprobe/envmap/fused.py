@@ -22,6 +22,12 @@ import numpy as np
 from ..jit import njit
 from .pole_rows import FACTORS as POLE_FACTORS, TIER_HEIGHTS as POLE_TIER_HEIGHTS, TIER_REACH as POLE_REACH
 
+# The kernels' floating-point licences, one set for all: fused multiply-adds, reciprocals, no signed zeros and
+# reassociation, enough for sums and weights to vectorise. Not "nnan"/"ninf", with which LLVM may assume that no NaN or
+# infinity ever occurs and fold away what depends on one. Helpers that must decide alike in every kernel (which row,
+# which pixel a point falls in) take fastmath=False.
+KERNEL_FASTMATH = {"contract", "arcp", "nsz", "reassoc"}
+
 LATLONG, CUBE, ANGULAR, SPHERE = 0, 1, 2, 3
 CODES = {"latlong": LATLONG, "cube": CUBE, "angular": ANGULAR, "sphere": SPHERE}
 
@@ -1224,7 +1230,7 @@ def _cube_edge_terms(tgt_axes, face, row, col, h, w, rates, rotation, src_kind, 
 # costs 4–7 % of a 2048×1024 → 6×512² conversion, 1–2 % into a disc; the values are the same. Its callers pass
 # np.int64(…) where an argument could be a constant: numba compiles a callee once for each literal value it is
 # called with. It runs in every caller with the kernels' fastmath, as it did inlined.
-@njit(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})
+@njit(cache=True, error_model="numpy", fastmath=KERNEL_FASTMATH)
 def _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, rates, rotation, src_kind, src_axes, src_h, src_w, pfs, pxs,
                 pys, pws, rim_k_max):  # pragma: no cover - compiled
     """One target pixel's subsamples — ku × kv, its cells graded towards its neighbours' rates (:func:`_graded`);
@@ -1465,7 +1471,8 @@ def _source_rim_chunk(plan, tgt_kind, tgt_axes, face, row, col, h, w, rotation, 
     """The next lookups of a pixel sampled round the source's rim direction (``plan``: :func:`_source_rim_plan`),
     from row ``start_row``, lookup ``start_at`` of it, while ``pfs`` has room: their source positions and weights,
     those that fall outside the pixel left out; returns (count, Σ weights, row, lookup to resume from) — the row is
-    ``plan``'s rows when it is done."""
+    ``plan``'s rows when it is done. Callers start at ``np.int64(0)``: with a plain 0 numba typed one caller's first
+    call with literal arguments and compiled this a second time (~37 s of the set-up's warm-up)."""
     rho_lo, rho_hi, centre, lo, hi, rows, spacing = plan
     frame = _source_rim_frame(src_kind, src_axes)
     d_rho = (rho_hi - rho_lo) / rows
@@ -1519,13 +1526,13 @@ def _source_rim_chunk(plan, tgt_kind, tgt_axes, face, row, col, h, w, rotation, 
     return n, wsum, rows, 0
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})
+@njit(cache=True, error_model="numpy", fastmath=KERNEL_FASTMATH)
 def _source_rim_value(src_kind, src, valid, src_axes, src_h, src_w, tgt_kind, tgt_axes, face, row, col, h, w,
                       rotation, pfs, pxs, pys, pws, wx, wy, value, acc):  # pragma: no cover - compiled
     """``acc`` = target pixel (face, row, col) sampled round a disc source's rim direction (:func:`_source_rim_chunk`,
     a padded source as :func:`resample_into` reads it); False, ``acc`` untouched, where no lookup falls in it."""
     plan = _source_rim_plan(tgt_kind, tgt_axes, face, row, col, h, w, rotation, src_kind, src_axes, src_w)
-    r, g, b, wsum, i, j = 0.0, 0.0, 0.0, 0.0, 0, 0
+    r, g, b, wsum, i, j = 0.0, 0.0, 0.0, 0.0, np.int64(0), np.int64(0)  # not literal 0s: see _source_rim_chunk
     while i < plan[5]:
         n, part, i, j = _source_rim_chunk(plan, tgt_kind, tgt_axes, face, row, col, h, w, rotation, src_kind,
                                           src_axes, src_h, src_w, i, j, pfs, pxs, pys, pws)
@@ -1542,11 +1549,11 @@ def _source_rim_value(src_kind, src, valid, src_axes, src_h, src_w, tgt_kind, tg
     return True
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})
+@njit(cache=True, error_model="numpy", fastmath=KERNEL_FASTMATH)
 def _source_rim_weight(plan, tgt_kind, tgt_axes, face, row, col, h, w, rotation, src_kind, src_axes, src_h, src_w,
                        pfs, pxs, pys, pws):  # pragma: no cover - compiled
     """Σ weights of a pixel's lookups round the source's rim direction (a first pass, for the taps' scale)."""
-    wsum, i, j = 0.0, 0, 0
+    wsum, i, j = 0.0, np.int64(0), np.int64(0)
     while i < plan[5]:
         _, part, i, j = _source_rim_chunk(plan, tgt_kind, tgt_axes, face, row, col, h, w, rotation, src_kind,
                                           src_axes, src_h, src_w, i, j, pfs, pxs, pys, pws)
@@ -1554,7 +1561,7 @@ def _source_rim_weight(plan, tgt_kind, tgt_axes, face, row, col, h, w, rotation,
     return wsum
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=KERNEL_FASTMATH)
 def resample_into(src_kind, src, valid, levels, reduced, row_offsets, caps, src_axes, src_h, src_w, tgt_kind,
                   tgt_axes, tgt_h, tgt_valid, all_valid, k, k_max, rotation, out, first):  # pragma: no cover - compiled
     """Fill ``out`` (n, W, 3) float32 with the target's lines ``first`` to ``first + n − 1`` (a line is one row of
@@ -1617,7 +1624,7 @@ def _pixel(src_kind, src, valid, levels, reduced, row_offsets, caps, src_axes, s
         acc[c] /= wsum
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})
+@njit(cache=True, error_model="numpy", fastmath=KERNEL_FASTMATH)
 def pixel_into(src_kind, src, valid, levels, reduced, row_offsets, caps, src_axes, src_h, src_w, tgt_kind, tgt_axes,
                face, row, col, h, w, k, rotation, pfs, pxs, pys, pws, wx, wy, value, tile, scratch,
                acc):  # pragma: no cover - compiled
@@ -1676,7 +1683,7 @@ def _polar_taps(levels, row_offsets, h, w, pxs, pys, pws, n, scale, scratch, til
     return t
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=KERNEL_FASTMATH)
 def footprint_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, caps, src_axes, src_h, src_w, tgt_kind,
                    tgt_axes, tgt_h, tgt_w, tgt_valid, all_valid, k, k_max, rotation, first, idx, wts,
                    counts):  # pragma: no cover - compiled
@@ -1712,7 +1719,7 @@ def footprint_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, c
                                         rates, pfs, pxs, pys, pws, tile, scratch, wx, wy, idx[p], wts[p])
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=KERNEL_FASTMATH)
 def footprint_delivery(src_kind, src_shape, valid, index_map, levels, row_offsets, caps, src_axes, src_h, src_w,
                        tgt_kind, tgt_axes, tgt_h, tgt_w, tgt_valid, all_valid, k, k_max, rotation, first, last,
                        omega_t, max_taps, total, base):  # pragma: no cover - compiled
@@ -1752,7 +1759,7 @@ def footprint_delivery(src_kind, src_shape, valid, index_map, levels, row_offset
                     total[i] += o * wts[j]
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})
+@njit(cache=True, error_model="numpy", fastmath=KERNEL_FASTMATH)
 def _source_rim_taps_into(src_kind, src_shape, valid, index_map, src_axes, src_h, src_w, tgt_kind, tgt_axes, face, row,
                           col, h, w, rotation, scale, pfs, pxs, pys, pws, wx, wy, idx, wts,
                           total):  # pragma: no cover - compiled
@@ -1765,7 +1772,7 @@ def _source_rim_taps_into(src_kind, src_shape, valid, index_map, src_axes, src_h
     if wsum <= 0.0:
         return False
     levels, row_offsets = np.zeros(1, np.int64), np.zeros(1, np.int64)  # a disc source has no polar rows
-    i, j = 0, 0
+    i, j = np.int64(0), np.int64(0)
     while i < plan[5]:
         n, _, i, j = _source_rim_chunk(plan, tgt_kind, tgt_axes, face, row, col, h, w, rotation, src_kind, src_axes,
                                        src_h, src_w, i, j, pfs, pxs, pys, pws)
@@ -1778,7 +1785,7 @@ def _source_rim_taps_into(src_kind, src_shape, valid, index_map, src_axes, src_h
     return True
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=KERNEL_FASTMATH)
 def source_rim_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, caps, src_axes, src_h, src_w, tgt_kind,
                     tgt_axes, tgt_h, tgt_w, tgt_valid, all_valid, k, k_max, rotation, line, col, merged,
                     touched):  # pragma: no cover - compiled
@@ -1802,7 +1809,7 @@ def source_rim_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, 
                         tgt_kind, tgt_axes, h, w, k_max, k_max, rotation, face, row, col, rates, pfs, pxs, pys,
                         pws, tile, scratch, wx, wy, idx, wts)
         return _merged_taps(idx, wts, n, merged, touched, t)
-    i, j = 0, 0
+    i, j = np.int64(0), np.int64(0)
     while i < plan[5]:
         n, _, i, j = _source_rim_chunk(plan, tgt_kind, tgt_axes, face, row, col, h, w, rotation, src_kind, src_axes,
                                        src_h, src_w, i, j, pfs, pxs, pys, pws)
@@ -1827,7 +1834,7 @@ def _merged_taps(idx, wts, n, merged, touched, t):  # pragma: no cover - compile
     return t
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})
+@njit(cache=True, error_model="numpy", fastmath=KERNEL_FASTMATH)
 def _pixel_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, caps, src_axes, src_h, src_w, tgt_kind,
                 tgt_axes, h, w, k, k_max, rotation, face, row, col, rates, pfs, pxs, pys, pws, tile, scratch, wx, wy,
                 idx, wts):  # pragma: no cover - compiled
@@ -1905,7 +1912,7 @@ def _lookup_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, src
     return t
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract", "arcp", "nsz", "reassoc"})
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=KERNEL_FASTMATH)
 def apply_taps(src, reduced, offsets, idx, wts, out, first):  # pragma: no cover - compiled
     """out[p − first] = Σ_j wts[j] · src[idx[j]] for pixels p = first … first + len(out) − 1 (CSR ``offsets``);
     ``src`` is the source flattened to (pixels, 3); an index past it reads ``reduced`` (a latlong's reduced polar
