@@ -1472,7 +1472,7 @@ def _source_rim_chunk(plan, tgt_kind, tgt_axes, face, row, col, h, w, rotation, 
     from row ``start_row``, lookup ``start_at`` of it, while ``pfs`` has room: their source positions and weights,
     those that fall outside the pixel left out; returns (count, Σ weights, row, lookup to resume from) — the row is
     ``plan``'s rows when it is done. Callers start at ``np.int64(0)``: with a plain 0 numba typed one caller's first
-    call with literal arguments and compiled this a second time (~37 s of the set-up's warm-up)."""
+    call with literal arguments and compiled this a second time (it takes ~20 s of the set-up's warm-up)."""
     rho_lo, rho_hi, centre, lo, hi, rows, spacing = plan
     frame = _source_rim_frame(src_kind, src_axes)
     d_rho = (rho_hi - rho_lo) / rows
