@@ -999,20 +999,14 @@ VIEWER_STATES = [  # (file name, caption, page state): what the viewer section s
 ]
 
 
-def section_viewer(rep: Report) -> str:
-    """``lightprobe view``: the bake exported as a static folder beside the report, opened through a plain static
-    server in headless Chromium, and a screenshot of each method and control state taken from the live page."""
+def _viewer_bake(rep: Report) -> dict:
+    """The viewer's bake of the probe (SH, lights, 12 radiance maps, split sum: compiled kernels) exported as a static
+    site into ``viewer/`` beside the report; returns the bake's document."""
     import tempfile
 
-    from .engines import missing_engines
     from .viewer.bake import BakeOptions, bake
-    from .viewer.page import ViewerPage
     from .viewer.server import export_static
 
-    title = "<h2>The viewer: <code>lightprobe view</code></h2>"
-    missing = missing_engines()
-    if missing:
-        return title + f"<p>Not run here: it needs {html.escape(', '.join(missing))} (<code>bash setup.sh</code>).</p>"
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(dir=rep.out) as temp:
         doc = bake(rep.env, Path(temp) / "bake", None, BakeOptions(brdfs=(GLOSSY_DEMO[0],), map_size=32),
@@ -1020,6 +1014,15 @@ def section_viewer(rep: Report) -> str:
         export_static(Path(temp) / "bake", rep.out / "viewer")
     rep.timings["viewer bake (SH, lights, 12 radiance maps 32², split sum) and static export"] = \
         time.perf_counter() - t0
+    return doc
+
+
+def _viewer_shots(rep: Report) -> tuple[list[str], list[list]]:
+    """A screenshot of each of VIEWER_STATES from the exported site in headless Chromium, and its frame time: the
+    figures and the table rows. Chromium and file serving only, no compiled kernel, so it may run in a thread of its
+    own."""
+    from .viewer.page import ViewerPage
+
     t0 = time.perf_counter()
     figures, rows = [], []
     with ViewerPage(site=rep.out / "viewer", width=600, height=330) as page:
@@ -1036,6 +1039,29 @@ def section_viewer(rep: Report) -> str:
     if errors:
         raise LightprobeError(f"the viewer's page reported an error: {errors[0].splitlines()[0]}")
     rep.timings["viewer screenshots (headless Chromium, SwiftShader)"] = time.perf_counter() - t0
+    return figures, rows
+
+
+def _viewer_started(rep: Report, beside) -> tuple:
+    """The viewer's bake here, then its screenshots submitted to the executor ``beside``: (the bake's document, the
+    screenshots' future)."""
+    doc = _viewer_bake(rep)
+    return doc, beside.submit(_viewer_shots, rep)
+
+
+def section_viewer(rep: Report, started: tuple | None = None) -> str:
+    """``lightprobe view``: the bake exported as a static folder beside the report, opened through a plain static
+    server in headless Chromium, and a screenshot of each method and control state taken from the live page.
+    ``started``: :func:`_viewer_started`'s (bake, screenshots under way), when the report took them beside the
+    engines section."""
+    from .engines import missing_engines
+
+    title = "<h2>The viewer: <code>lightprobe view</code></h2>"
+    missing = missing_engines()
+    if missing:
+        return title + f"<p>Not run here: it needs {html.escape(', '.join(missing))} (<code>bash setup.sh</code>).</p>"
+    doc, shots = started if started is not None else (_viewer_bake(rep), None)
+    figures, rows = shots.result() if shots is not None else _viewer_shots(rep)
     return (title + "<p>The page (WebGL2; three.js from npm for the scene and the loop, lightprobe's own shaders "
             "for the lighting) with the bake of this probe — "
             f"{doc['lights']['count']} area lights, 12 radiance maps of {html.escape(doc['brdfs'][0]['spec'])} — "
@@ -1043,8 +1069,9 @@ def section_viewer(rep: Report) -> str:
             "<code>lightprobe view --export</code> into <code>viewer/</code> beside this report. Module scripts "
             "need HTTP: serve it with <code>python3 -m http.server -d viewer</code> and open the address it prints. "
             "Each picture below is that exported page, served by a plain static server and drawn by headless "
-            "Chromium's SwiftShader (a software rasteriser: the frame times are a floor, a GPU is far faster). "
-            "The first shows the whole page with its controls; the tests read the same page's float render "
+            "Chromium's SwiftShader (a software rasteriser: the frame times are a floor, a GPU is far faster"
+            + ("; taken while the engines section drove its own Chromium beside it" if started is not None else "")
+            + "). The first shows the whole page with its controls; the tests read the same page's float render "
             "targets back and compare them with the Python renderer, three.js and "
             "<code>lightprobe radiance --synthesize</code>.</p>"
             + "".join(figures) + table(["state", "frame (300×330 canvas)"], rows))
@@ -1125,6 +1152,23 @@ figure img{max-width:100%;max-height:300px}.grid figure img{max-height:220px}fig
 MARKER = ".lightprobe-report"  # the file that makes a folder a previous report, safe to replace
 
 
+def _sections_html(rep: Report) -> str:
+    """Every section of SECTIONS, in order. The viewer's screenshots are taken in a thread while the engines section
+    runs: both mostly wait on their own headless Chromium (~0.7 of a core each), and the screenshots run no compiled
+    kernel (the viewer's bake runs first, in this thread). Nothing the speed section times runs meanwhile."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from .engines import missing_engines
+
+    parts, viewer = [], None
+    with ThreadPoolExecutor(1) as beside:
+        for section in track(SECTIONS, "writing the report", total=len(SECTIONS)):
+            if section is section_engines and section_viewer in SECTIONS and not missing_engines():
+                viewer = _viewer_started(rep, beside)
+            parts.append(section_viewer(rep, viewer) if section is section_viewer else section(rep))
+    return "".join(parts)
+
+
 def warm_up() -> float:
     """Run every compiled kernel the report uses once on tiny inputs (:func:`lightprobe.warmup.compile_kernels`), so
     the sections' timings are warm; returns the seconds it took (compilation, or loading the kernels from numba's
@@ -1186,7 +1230,7 @@ def _write_report(env: EnvMap, out: Path, probe_name: str | None) -> None:
                  exposure=auto_exposure(env.data, env.solid_angles()))
     t0 = time.perf_counter()
     compile_seconds = warm_up()
-    body = "".join(section(rep) for section in track(SECTIONS, "writing the report", total=len(SECTIONS)))
+    body = _sections_html(rep)
     rows = [["compiling the numba kernels, or loading them from numba's cache (setup.sh compiles them)",
              f"{1000 * compile_seconds:.1f} ms"]]
     rows += [[k, f"{1000 * v:.1f} ms"] for k, v in rep.timings.items()]
