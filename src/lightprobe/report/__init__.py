@@ -1,0 +1,1 @@
+"""``lightprobe demo``: the report of everything lightprobe does on one probe."""

@@ -1,0 +1,1 @@
+"""Foundations every floor stands on: errors, the names users type, limits, progress, atomic files, numba."""
