@@ -17,10 +17,10 @@ from common import SHARED, require  # sets the environment first
 
 import numpy as np
 
-from lightprobe.engines import babylon, babylon_irradiance_over_pi, missing_engines, relative
-from lightprobe.envmap import read_envmap
-from lightprobe.export import export
-from lightprobe.sh import project
+from lightprobe_engines.runtimes import babylon, babylon_irradiance_over_pi, missing_engines, relative
+from lightprobe.maps import read_envmap
+from lightprobe.exports.sh import export
+from lightprobe.sh.basis import project
 
 SIZES = (256, 512, 1024, 2048)
 PROBES = ("rooitou_park_1k", "venice_sunset_1k", "st_fagans_interior_1k")

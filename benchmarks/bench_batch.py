@@ -31,7 +31,7 @@ EXE = str(Path(sys.executable).with_name("lightprobe"))
 
 
 def _maps(folder: Path, copies: int) -> list[Path]:
-    from lightprobe.envmap import read_envmap
+    from lightprobe.maps import read_envmap
 
     out = []
     for source in sorted((SHARED / "polyhaven_1k").glob("*.hdr")):

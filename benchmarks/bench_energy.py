@@ -1,4 +1,4 @@
-"""Energy of a one-pixel sun through every conversion: issue 9's accuracy bar (∫L dω within 0.2 %) measured on
+"""Energy of a one-pixel sun through every conversion: the accuracy bar (∫L dω within 0.2 %) measured on
 directions nobody chose, beside the ones the tests pin down.
 
     python benchmarks/bench_energy.py [--suns 40] [--seed 11] [--part all|balance|flux|rows]
@@ -9,12 +9,12 @@ layout at sizes 16, 32 and 64 (unturned), two tables:
   directions plus eight within 3° of the poles; the worst and the median relative error of the map's ∫L dω and
   how many exceed 0.2 %;
 - every pixel: the gain of a sun in each source pixel, relative to the sun's own ∫L dω, for all pixels at once —
-  exact, from the conversion's weights (:meth:`lightprobe.envmap.Resampler.energy_gains`). Random suns miss the
+  exact, from the conversion's weights (:meth:`lightprobe.maps.Resampler.energy_gains`). Random suns miss the
   few pixels where a conversion goes wrong (a cube's edges, the rim side of a disc); this table does not.
 Then the every-pixel measure at full size (cube 256–512, discs 1024, targets 256–1024), lat-longs into discs as a
 map too large for the flux correction has them (``--part rows``), what each pixel's own subsample rate costs against
-one rate for the whole map, what a cube source's texel balance costs (:mod:`lightprobe.envmap.balance`: its weights
-once per size, then one pass over the faces), and what the flux correction costs (:mod:`lightprobe.envmap.flux`: the
+one rate for the whole map, what a cube source's texel balance costs (:mod:`lightprobe.maps.resampling.balance`: its weights
+once per size, then one pass over the faces), and what the flux correction costs (:mod:`lightprobe.maps.resampling.flux`: the
 conversion's adjoint and the flows once per pair of grids and process, then one pass over the source).
 Suns within 25° of a disc's rim direction (where one direction is a ring of pixels) are left out, in the source and
 in the target.
@@ -30,8 +30,8 @@ from common import require  # noqa: F401  (sets the environment first)
 
 import numpy as np
 
-from lightprobe.envmap import EnvMap, Resampler, resample
-from lightprobe.layouts import layout
+from lightprobe.maps import EnvMap, Resampler, resample
+from lightprobe.maps.layouts import layout
 
 SOURCES = {"latlong": 128, "cube": 64, "angular": 128, "sphere": 128}
 TARGETS = ("latlong", "cube", "angular", "sphere")
@@ -134,7 +134,7 @@ FULL_SIZE = [("cube", 256, "latlong", 512), ("cube", 512, "latlong", 1024), ("cu
 
 def full_size() -> None:
     """The every-pixel measure at the sizes maps are converted at, and a turned cube into a cube."""
-    from lightprobe.frames import rotation_from_ypr
+    from lightprobe.maps.frames import rotation_from_ypr
 
     print("\nevery source pixel as the sun, at full size (a turned cube: yaw 30°, pitch 20°, roll 10°)")
     print(f"  {'conversion':34s} {'worst':>8s} {'99.9th':>8s}  over 0.2 %")
@@ -176,9 +176,9 @@ def rate_cost(rounds: int = 3) -> None:
     both (a rate given by hand has none: flux_cost times it)."""
     import time
 
-    from lightprobe.envmap.resampling import supersampling
+    from lightprobe.maps.resampling.resampler import supersampling
 
-    resample_module = importlib.import_module("lightprobe.envmap.resampling")
+    resample_module = importlib.import_module("lightprobe.maps.resampling.resampler")
     with_flux, resample_module._flux_stencil = resample_module._flux_stencil, lambda *args, **kwargs: None
 
     print("\nper-pixel rates against one rate k for the whole map (best of 3, alternating)")
@@ -209,13 +209,13 @@ def balance_cost(rounds: int = 3) -> None:
     its own column)."""
     import time
 
-    from lightprobe.envmap import balance
+    from lightprobe.maps.resampling import balance
 
     print("\na cube source's texel balance: conversion time with it against without (best of 3, alternating)")
     print(f"  {'conversion':34s} {'weights':>8s} {'pass':>7s} {'without':>8s} {'with':>8s}  ratio")
     rng = np.random.default_rng(2)
     with_balance = balance.prefilter_for
-    resample_module = importlib.import_module("lightprobe.envmap.resampling")
+    resample_module = importlib.import_module("lightprobe.maps.resampling.resampler")
     with_flux, resample_module._flux_stencil = resample_module._flux_stencil, lambda *args, **kwargs: None
     for name, size, target, out_size in BALANCE_COST:
         src_layout, tgt_layout = layout(name), layout(target)
@@ -252,7 +252,7 @@ def flux_cost(rounds: int = 3) -> None:
     process), with it kept, and without it (best of ``rounds`` alternating runs each), and the largest weight."""
     import time
 
-    resample_module = importlib.import_module("lightprobe.envmap.resampling")
+    resample_module = importlib.import_module("lightprobe.maps.resampling.resampler")
     print("\nthe flux correction: conversion time when it is made, when it is kept, and without it (best of 3)")
     print(f"  {'conversion':34s} {'without':>8s} {'made':>8s} {'kept':>8s}  made/without kept/without  weight")
     rng = np.random.default_rng(3)

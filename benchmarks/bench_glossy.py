@@ -26,12 +26,12 @@ from common import SHARED, best_of, require  # sets the environment first
 
 import numpy as np
 
-from lightprobe.brdf import directional_albedo, parse_brdf
-from lightprobe.envmap import read_envmap
-from lightprobe.radiance import geodesic_views, prepare, radiance_map, reflected_radiance, sphere_normals, view_frame
-from lightprobe.radiancefile import RadianceSet, radiance_set
-from lightprobe import rsibr
-from lightprobe.rsibr import synthesize
+from lightprobe.glossy.brdf import directional_albedo, parse_brdf
+from lightprobe.maps import read_envmap
+from lightprobe.glossy.radiance import geodesic_views, prepare, radiance_map, reflected_radiance, sphere_normals, view_frame
+from lightprobe.glossy.radiancefile import RadianceSet, radiance_set
+from lightprobe.glossy import rsibr
+from lightprobe.glossy.rsibr import synthesize
 
 GRACE = "debevec/angular/grace_probe.hdr"
 SUNNY = "polyhaven_1k/rooitou_park_1k.hdr"
@@ -128,7 +128,7 @@ BUNNY = "meshes/stanford/bun_zipper_res2.ply"
 
 def quality(size: int, spp: int) -> None:
 
-    from lightprobe.envmap import box_reduce
+    from lightprobe.maps import box_reduce
     from lightprobe.render.compare import compare
     from lightprobe.render.methods import method
     from lightprobe.render.raycast import Tracer

@@ -6,7 +6,7 @@ Baselines: OpenImageIO's own read of the same file (ImageInput.read_image as flo
 one numpy pass over the same pixels (an elementwise multiply into a preallocated array), and a plain nearest-pixel
 numpy resampler (directions of the target's pixel centres → source pixel → fancy index; no footprint, no
 filtering) doing the same conversion, generic over layouts (float64 directions: slower than the float32 per-face
-one of bench_peers.py, which is the baseline issue 9's figures quote).
+one of bench_peers.py, which is the baseline the performance figures quote).
 """
 
 from __future__ import annotations
@@ -22,9 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
-from lightprobe.envmap import EnvMap, read_envmap, resample
-from lightprobe.io import read_image, write_image
-from lightprobe.layouts import CUBE, LATLONG
+from lightprobe.maps import EnvMap, read_envmap, resample
+from lightprobe.maps.images import read_image, write_image
+from lightprobe.maps.layouts import CUBE, LATLONG
 
 
 
@@ -61,8 +61,8 @@ def nearest_resampler(source: EnvMap, target, size: int):
 def streamed_rows(big: EnvMap, repeat: int) -> list[tuple]:
     """lat-long → cube, cross and horizontal cross at 512, streamed in strips (resample_strips, what `lightprobe
     convert` writes): each against the cube's strips and against its own whole-map resample."""
-    from lightprobe.envmap import resample_strips
-    from lightprobe.layouts import layout
+    from lightprobe.maps import resample_strips
+    from lightprobe.maps.layouts import layout
 
     def strips(target):
         def run():

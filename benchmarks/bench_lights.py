@@ -23,12 +23,12 @@ from common import SHARED, best_of, require  # sets the environment first
 
 import numpy as np
 
-from lightprobe.baselines import median_cut, variance_minimisation
-from lightprobe.envmap import read_envmap
-from lightprobe.hybrid import DEFAULT_AMBIENT_ORDER, hybrid_error_report, hybrid_irradiance
-from lightprobe.irradiance import brute_irradiance, error_report, reference_normals
-from lightprobe.layouts import LATLONG
-from lightprobe.lights import decompose
+from lightprobe.lights.baselines import median_cut, variance_minimisation
+from lightprobe.maps import read_envmap
+from lightprobe.lights.hybrid import DEFAULT_AMBIENT_ORDER, hybrid_error_report, hybrid_irradiance
+from lightprobe.sh.irradiance import brute_irradiance, error_report, reference_normals
+from lightprobe.maps.layouts import LATLONG
+from lightprobe.lights.decompose import decompose
 from lightprobe.render.compare import compare
 from lightprobe.render.methods import method
 from lightprobe.render.raycast import Tracer
@@ -87,9 +87,9 @@ def quality(size: int, spp: int, baseline_count: str = "same") -> None:
 
 
 def table1(previews: Path | None) -> None:
-    from lightprobe.io import write_image
-    from lightprobe.lights import LightParams, preview
-    from lightprobe.tonemap import luminance
+    from lightprobe.maps.images import write_image
+    from lightprobe.lights.decompose import LightParams, preview
+    from lightprobe.maps.tonemap import luminance
 
     print("\n## Table 1: lights found (paper's defaults), and with the stopping rule at 1 %")
     print(f"{'probe':10s} {'found':>6s} {'paper':>6s} {'in lights':>10s} {'next light':>11s} {'stop 1 %':>9s} "

@@ -32,10 +32,10 @@ from common import SHARED, require  # sets the environment first
 
 import numpy as np
 
-from lightprobe.envmap import EnvMap, Resampler, auto_samples, read_envmap, resample
-from lightprobe.io import write_image
-from lightprobe.layouts import CUBE, CUBE_FACE_ORDER, CUBE_FACES, LATLONG, _cube_texel_solid_angles
-from lightprobe.sh import project
+from lightprobe.maps import EnvMap, Resampler, auto_samples, read_envmap, resample
+from lightprobe.maps.images import write_image
+from lightprobe.maps.layouts import CUBE, CUBE_FACE_ORDER, CUBE_FACES, LATLONG, _cube_texel_solid_angles
+from lightprobe.sh.basis import project
 
 
 def timed(fn) -> float:

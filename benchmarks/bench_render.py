@@ -16,7 +16,7 @@ import time
 from common import SHARED, require  # sets the environment first
 
 from lightprobe.data import default_probe_path
-from lightprobe.envmap import read_envmap
+from lightprobe.maps import read_envmap
 from lightprobe.render.compare import compare
 from lightprobe.render.methods import method
 from lightprobe.render.raycast import Tracer

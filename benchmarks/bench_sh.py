@@ -25,10 +25,10 @@ from common import SHARED, best_of, require  # sets the environment first
 
 import numpy as np
 
-from lightprobe.envmap import read_envmap
-from lightprobe.irradiance import irradiance_map
-from lightprobe.layouts import LATLONG
-from lightprobe.sh import project
+from lightprobe.maps import read_envmap
+from lightprobe.sh.irradiance import irradiance_map
+from lightprobe.maps.layouts import LATLONG
+from lightprobe.sh.basis import project
 
 
 
@@ -65,8 +65,8 @@ def ducc_band_powers(alms, l_max: int) -> np.ndarray:
 
 def cross_check(l_max: int) -> float:
     """Largest band-power difference between lightprobe and ducc0 on a band-limited 1024×512 map, relative."""
-    from lightprobe.envmap import EnvMap
-    from lightprobe.sh import SHCoeffs, n_coeffs
+    from lightprobe.maps import EnvMap
+    from lightprobe.sh.basis import SHCoeffs, n_coeffs
 
     truth = np.random.default_rng(l_max).normal(size=(n_coeffs(l_max), 3))
     truth[0] += 3 * np.abs(truth).sum(axis=0)

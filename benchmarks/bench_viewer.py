@@ -22,14 +22,14 @@ from pathlib import Path
 
 from common import SHARED, best_of, require  # sets the environment first
 
-from lightprobe.brdf import parse_brdf
+from lightprobe.glossy.brdf import parse_brdf
 from lightprobe.data import default_probe_path
-from lightprobe.envmap import read_envmap
+from lightprobe.maps import read_envmap
 from lightprobe.render.methods import method as make_method
 from lightprobe.render.renderer import render
 from lightprobe.render.scene import Material, mesh_scene
 from lightprobe.viewer.bake import BakeOptions, bake
-from lightprobe.viewer.page import ViewerPage
+from lightprobe_engines.viewer_page import ViewerPage
 
 GOLD = "ggx:alpha=0.2,conductor=gold"
 PYTHON = {  # page method → the Python renderer's method and whether the objects are the glossy material

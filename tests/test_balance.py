@@ -1,4 +1,4 @@
-"""A cube source's texel balance (lightprobe.envmap.balance): the integrals of the B-spline reconstruction's bases
+"""A cube source's texel balance (lightprobe.maps.resampling.balance): the integrals of the B-spline reconstruction's bases
 against brute force, the balance making each texel carry its own solid angle, and conversions from cubes keeping a
 one-texel sun's energy where the reconstruction used to lose it."""
 
@@ -7,9 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from lightprobe.envmap import EnvMap, Resampler, balance, resample
-from lightprobe.envmap.map import pixel_solid_angles
-from lightprobe.layouts import CUBE, LATLONG, layout
+from lightprobe.maps import EnvMap, Resampler, resample
+from lightprobe.maps.resampling import balance
+from lightprobe.maps.envmap import pixel_solid_angles
+from lightprobe.maps.layouts import CUBE, LATLONG, layout
 
 
 def brute_force_integrals(n: int, fine: int) -> np.ndarray:
@@ -90,7 +91,7 @@ def test_the_balance_is_a_small_convex_blend():
 ])
 def test_a_sun_in_any_cube_texel_keeps_its_energy(target, out_size, ceiling, before):
     """Every texel of a 64-texel cube as a one-texel sun (energy_gains), into a cube of the same size and a
-    lat-long: within issue 9's 0.2 % now (the worst was the edge and vertex texels, 0.86 % and 0.77 %) — and the
+    lat-long: within the 0.2 % bar now (the worst was the edge and vertex texels, 0.86 % and 0.77 %) — and the
     same texels' suns put through resample directly."""
     gains = Resampler(CUBE, (6, 64, 64), layout(target), out_size).energy_gains()
     assert np.abs(gains).max() < ceiling < before

@@ -8,10 +8,10 @@ import pytest
 
 from conftest import shared
 from lightprobe import read_envmap
-from lightprobe.baselines import median_cut, variance_minimisation
-from lightprobe.envmap import EnvMap
-from lightprobe.errors import UsageError
-from lightprobe.layouts import LATLONG
+from lightprobe.lights.baselines import median_cut, variance_minimisation
+from lightprobe.maps import EnvMap
+from lightprobe.util.errors import UsageError
+from lightprobe.maps.layouts import LATLONG
 
 
 def test_the_lights_carry_the_whole_map():

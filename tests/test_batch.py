@@ -16,7 +16,7 @@ import pytest
 
 from conftest import shared
 from lightprobe.cli import main
-from lightprobe.io import write_image
+from lightprobe.maps.images import write_image
 
 pytestmark = pytest.mark.xdist_group("batch")
 EXE = str(Path(sys.executable).with_name("lightprobe"))
@@ -191,7 +191,7 @@ def test_batch_equals_the_single_file_commands_bit_for_bit(tmp_path):
     assert a == b and row["light_count"] == len(b["lights"])
     assert subprocess.run([EXE, "irradiance", str(probe), "-o", str(tmp_path / "irr.exr"), "--order", "4"]
                           ).returncode == 0
-    from lightprobe.io import read_image
+    from lightprobe.maps.images import read_image
 
     assert np.array_equal(read_image(out / row["irradiance"]), read_image(tmp_path / "irr.exr"))
     assert subprocess.run([EXE, "radiance", str(probe), "--brdf", "ggx:alpha=0.2", "--size", "8", "-o",

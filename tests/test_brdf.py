@@ -8,9 +8,8 @@ import numpy as np
 import pytest
 
 from conftest import random_directions
-from lightprobe.brdf import (CONDUCTORS, GGX, BlinnPhong, Coat, Conductor, Dielectric, Lambert, Phong, Schlick,
-                             directional_albedo, parse_brdf)
-from lightprobe.errors import UsageError
+from lightprobe.glossy.brdf import CONDUCTORS, GGX, BlinnPhong, Coat, Conductor, Dielectric, Lambert, Phong, Schlick, directional_albedo, parse_brdf
+from lightprobe.util.errors import UsageError
 
 SPECS = ["lambert", "phong:n=50", "phong:n=3", "blinn:n=50", "blinn:n=5", "ggx:alpha=0.05", "ggx:alpha=0.2",
          "ggx:alpha=1", "ggx:alpha=0.2,conductor=gold", "ggx:alpha=0.3,ior=1.5", "ggx:alpha=0.2,f0=0.04",
@@ -141,7 +140,7 @@ def test_bad_specs_get_one_clear_message(spec, message):
 @pytest.mark.parametrize("spec", SPECS)
 def test_the_compiled_evaluation_is_the_numpy_one(spec):
     """brdf_times_cosine (the compiled sums' evaluation, Fresnel read from a 16384-step table) equals eval · n·wi."""
-    from lightprobe.brdf import compiled_eval_cosine
+    from lightprobe.glossy.brdf import compiled_eval_cosine
 
     brdf = parse_brdf(spec)
     n = random_directions(5000, seed=6)

@@ -13,8 +13,8 @@ import pytest
 
 from conftest import shared
 from lightprobe.cli import main
-from lightprobe.envmap import read_envmap
-from lightprobe.io import write_image
+from lightprobe.maps import read_envmap
+from lightprobe.maps.images import write_image
 
 
 def run(capsys, *argv):
@@ -66,7 +66,7 @@ def test_convert_rotate_moves_the_sun(tmp_path, capsys):
         i = np.unravel_index(np.argmax(env.data[..., 1]), env.grid)
         return env.directions()[i]
 
-    from lightprobe.frames import rotation_from_ypr
+    from lightprobe.maps.frames import rotation_from_ypr
 
     assert np.dot(sun(turned), rotation_from_ypr(90, 0, 0) @ sun(src)) > np.cos(np.radians(2))
 
@@ -153,7 +153,7 @@ def test_demo_writes_a_report_with_pictures(tmp_path, capsys):
 
 def test_demo_fails_when_the_reference_fails(tmp_path, monkeypatch):
     """Only a missing Mitsuba is excused in the report; a reference that breaks fails the demo."""
-    import lightprobe.demo as demo
+    import lightprobe.report.demo as demo
     from lightprobe.render import reference
 
     def broken(*args, **kwargs):
@@ -176,7 +176,7 @@ def test_the_command_exits_quickly_with_its_status_and_its_output(tmp_path, stat
 import atexit, sys
 atexit.register(lambda: open({str(earlier)!r}, "w").write("ran"))
 import lightprobe.cli as cli
-from lightprobe.lights import cap_sums, _row_prefix
+from lightprobe.lights.decompose import cap_sums, _row_prefix
 import numpy as np
 
 def fake_main():

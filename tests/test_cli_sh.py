@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from conftest import shared
-from lightprobe.envmap import read_envmap
-from lightprobe.io import write_image
-from lightprobe.layouts import LATLONG
+from lightprobe.maps import read_envmap
+from lightprobe.maps.images import write_image
+from lightprobe.maps.layouts import LATLONG
 from test_export import EVALUATORS
 from test_cli import assert_clean_failure, run
 

@@ -1,4 +1,4 @@
-"""Engines' environment containers (lightprobe.containers): RGBD, Babylon .env and glTF EXT_lights_image_based.
+"""Engines' environment containers (lightprobe.exports.containers): RGBD, Babylon .env and glTF EXT_lights_image_based.
 
 These check the files' structure and numbers against the formats as the engines read them; that Babylon itself
 loads and renders them as its own panorama is tests/test_engines.py."""
@@ -15,13 +15,12 @@ import pytest
 from PIL import Image
 
 from conftest import shared
-from lightprobe.containers import (ENV_MAGIC, GAMMA, babylon_env, glb, gltf_embedded, gltf_ibl, read_env_manifest,
-                                   rgbd_clipped, rgbd_decode, rgbd_encode)
-from lightprobe.envmap import read_envmap
-from lightprobe.export import babylon_polynomial, gltf_coefficients
-from lightprobe.prefilter import babylon_alphas, prefilter_cube
-from lightprobe.frames import BABYLON
-from lightprobe.sh import project
+from lightprobe.exports.containers import ENV_MAGIC, GAMMA, babylon_env, glb, gltf_embedded, gltf_ibl, read_env_manifest, rgbd_clipped, rgbd_decode, rgbd_encode
+from lightprobe.maps import read_envmap
+from lightprobe.exports.sh import babylon_polynomial, gltf_coefficients
+from lightprobe.glossy.prefilter import babylon_alphas, prefilter_cube
+from lightprobe.maps.frames import BABYLON
+from lightprobe.sh.basis import project
 
 
 @pytest.fixture(scope="module")

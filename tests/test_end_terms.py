@@ -1,18 +1,18 @@
-"""The midpoint rule's end terms where a target's subsamples meet on the sphere (lightprobe.envmap.fused): a lat-long
+"""The midpoint rule's end terms where a target's subsamples meet on the sphere (lightprobe.maps.resampling.fused): a lat-long
 target's pole rows (fused.POLE) and a cube target's face edges (fused._cube_edge_terms). Uncorrected, each left a
 one-pixel sun off by a term in 1/k² on a spot — a turned lat-long's poles (+0.52 %), a cube's vertices (+0.18 to
-+0.28 %) — where the random sweep of issue 9 found its largest misses."""
++0.28 %) — where the random sweep found its largest misses."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from lightprobe.envmap import Resampler
-from lightprobe.envmap.fused import POLE, _graded
-from lightprobe.envmap.map import pixel_directions
-from lightprobe.frames import rotation_from_ypr
-from lightprobe.layouts import layout
+from lightprobe.maps import Resampler
+from lightprobe.maps.resampling.fused import POLE, _graded
+from lightprobe.maps.envmap import pixel_directions
+from lightprobe.maps.frames import rotation_from_ypr
+from lightprobe.maps.layouts import layout
 
 LATLONG = layout("latlong")
 VERTICES = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) / np.sqrt(3)

@@ -16,11 +16,11 @@ import math
 import numpy as np
 import pytest
 
-from lightprobe.engines import LUMINANCE, Browser, Server, missing_engines
-from lightprobe.envmap import EnvMap
-from lightprobe.io import write_image
-from lightprobe.layouts import LATLONG
-from lightprobe.tonemap import srgb_decode
+from lightprobe_engines.runtimes import LUMINANCE, Browser, Server, missing_engines
+from lightprobe.maps import EnvMap
+from lightprobe.maps.images import write_image
+from lightprobe.maps.layouts import LATLONG
+from lightprobe.maps.tonemap import srgb_decode
 
 pytestmark = pytest.mark.xdist_group("engines")
 

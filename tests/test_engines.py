@@ -1,4 +1,4 @@
-"""Exports proven in the engines' own code (issue 8): three.js r187 in headless Chromium and Babylon.js 9.35 in Node.
+"""Exports proven in the engines' own code: three.js r187 in headless Chromium and Babylon.js 9.35 in Node.
 
 For each probe, the engine computes SH from the panorama file itself, the way its users do, and lightprobe's export
 of the *same file* is read by the engine; they must agree: band-1 direction within 3°, coefficients within 3 % of
@@ -16,15 +16,13 @@ import numpy as np
 import pytest
 
 from conftest import shared
-from lightprobe.engines import (ENGINES, LUMINANCE, Browser, Server, babylon, babylon_bundle,
-                                babylon_irradiance_over_pi, band1_angle, coefficient_difference, missing_engines,
-                                relative)
-from lightprobe.envmap import EnvMap, read_envmap
-from lightprobe.errors import LightprobeWarning
-from lightprobe.export import export
-from lightprobe.io import write_image
-from lightprobe.layouts import LATLONG
-from lightprobe.sh import project
+from lightprobe_engines.runtimes import ENGINES, LUMINANCE, Browser, Server, babylon, babylon_bundle, babylon_irradiance_over_pi, band1_angle, coefficient_difference, missing_engines, relative
+from lightprobe.maps import EnvMap, read_envmap
+from lightprobe.util.errors import LightprobeWarning
+from lightprobe.exports.sh import export
+from lightprobe.maps.images import write_image
+from lightprobe.maps.layouts import LATLONG
+from lightprobe.sh.basis import project
 
 pytestmark = pytest.mark.xdist_group("engines")  # one worker, so one browser start for all engine checks
 
@@ -160,7 +158,7 @@ def luminance_image(canvas: str, size: int = 128) -> np.ndarray:
     """Linear luminance of a canvas the page returned (base64 RGBA bytes, sRGB-encoded)."""
     import base64
 
-    from lightprobe.tonemap import srgb_decode
+    from lightprobe.maps.tonemap import srgb_decode
 
     rgba = np.frombuffer(base64.b64decode(canvas), np.uint8).reshape(size, size, 4)
     return srgb_decode(rgba[..., :3].astype(np.float32) / 255) @ LUMINANCE
@@ -216,7 +214,7 @@ CONTAINER_SIZE = 64  # specular cube of the container files (the diffuse checks 
 @pytest.fixture(scope="module")
 def containers(probes):
     """Each probe as lightprobe's Babylon .env and glTF (.glb) files, beside the panoramas the browser serves."""
-    from lightprobe.containers import babylon_env, glb, gltf_ibl
+    from lightprobe.exports.containers import babylon_env, glb, gltf_ibl
 
     folder, files = probes
     for name, path in files.items():
@@ -252,8 +250,8 @@ def test_babylon_shows_our_env_background_where_it_shows_its_own_panorama(babylo
                                                                           probes, probe, tmp_path):
     """Babylon's skybox of our .env against its skybox of its own HDRCubeTexture of the panorama, looking along
     each axis; the same .env made in the world frame (mirrored z, the mistake the frame fixes) must not pass."""
-    from lightprobe.containers import babylon_env
-    from lightprobe.frames import WORLD
+    from lightprobe.exports.containers import babylon_env
+    from lightprobe.maps.frames import WORLD
 
     _, files = probes
     env = read_envmap(files[probe])
@@ -287,7 +285,7 @@ def test_babylon_shows_our_env_background_where_it_shows_its_own_panorama(babylo
 def test_babylon_glossy_metal_from_our_mips_as_from_its_own_prefiltering(babylon_page, browser, containers, probe):
     """A white metal sphere of roughness 0.25, 0.5 and 0.8 in Babylon's PBR shader: its mips from our .env and our
     glTF against those Babylon's own GPU prefilter (HDRFiltering) makes from the panorama at the same size."""
-    from lightprobe.prefilter import prefilter_cube
+    from lightprobe.glossy.prefilter import prefilter_cube
 
     url = f"{browser.server.url}/files/{probe}"
     eye = [0.3, 0.45, 0.85]
@@ -311,7 +309,7 @@ def test_babylon_glossy_metal_from_our_mips_as_from_its_own_prefiltering(babylon
                for container, source in (("env", "env"), ("glb", "gltf"))}
     GLOSSY[probe] = (roughnesses, figures, spread)
     assert not browser.errors, browser.errors
-    # Measured (issue 8's note): .env 1.2-6.1 %, glTF 1.8-8.0 % against Babylon's own 64² prefilter, whose own
+    # Measured (when these tests were written): .env 1.2-6.1 %, glTF 1.8-8.0 % against Babylon's own 64² prefilter, whose own
     # 64² → 128² spread is 0.6-4.0 %. The glTF path is further off because Babylon's loader leaves that texture
     # in gamma space, so its mips are blended before the 2.2 power. Mistakes measured the same way: linear RGBD in
     # the glTF (the double gamma) 37-170 %; an .env whose mips hold the glTF loader's roughness per mip (scale 1
@@ -330,7 +328,7 @@ FILAMENT: dict = {}  # probe → (worst axis error of ours, worst error of the z
 @pytest.fixture(scope="module")
 def filament_page(browser, probes):
     """Filament 1.53 (WebAssembly) with a white rough dielectric sphere loaded through its gltfio."""
-    from lightprobe.engines import white_sphere_glb
+    from lightprobe_engines.runtimes import white_sphere_glb
 
     folder, _ = probes
     white_sphere_glb(folder / "sphere.glb")
@@ -354,14 +352,14 @@ def filament_centre(page, coefficients: np.ndarray, eye) -> float:
 @pytest.mark.parametrize("probe", PROBES)
 def test_filament_shades_our_sh_as_the_coefficients_mean(filament_page, browser, probes, probe):
     """Filament's own shader evaluates our sh.txt numbers on a sphere: at the point facing the brightest panorama
-    pixel and the opposite one it must show E/π of our radiance SH (evaluated by lightprobe.sh, not by the export
+    pixel and the opposite one it must show E/π of our radiance SH (evaluated by lightprobe.sh.basis, not by the export
     code) within 3 %, and facing ±x, ±y, ±z within 3 % of the mean E/π (some of those are near zero). Each render
     is scaled so that point sits at 0.5 of the 8-bit range, and a white furnace (E/π = 0.5 everywhere)
     calibrates Filament's constant factors at normal incidence. Filament's web build cannot compute SH from a
     panorama itself (that is its native cmgen), so the reference is what the coefficients mean; the same numbers
     stated in a z-mirrored frame must fail."""
-    from lightprobe.export import filament_coefficients
-    from lightprobe.frames import UNITY
+    from lightprobe.exports.sh import filament_coefficients
+    from lightprobe.maps.frames import UNITY
 
     _, files = probes
     env = read_envmap(files[probe])
@@ -415,8 +413,8 @@ def test_filament_shows_our_cube_map_where_our_lighting_comes_from(filament_page
     the same cube mirrored in x does not."""
     import base64
 
-    from lightprobe.envmap import resample
-    from lightprobe.layouts import CUBE
+    from lightprobe.maps import resample
+    from lightprobe.maps.layouts import CUBE
 
     _, files = probes
     env = read_envmap(files[probe])

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from conftest import SPECIAL_DIRECTIONS, random_directions, shared
-from lightprobe.envmap import EnvMap, box_reduce, from_image, read_envmap, resample, to_image
-from lightprobe.frames import rotation_from_ypr, rotation_y
-from lightprobe.layouts import LAYOUTS, layout
+from lightprobe.maps import EnvMap, box_reduce, from_image, read_envmap, resample, to_image
+from lightprobe.maps.frames import rotation_from_ypr, rotation_y
+from lightprobe.maps.layouts import LAYOUTS, layout
 
 NAMES = list(LAYOUTS)
 SIZES = {"latlong": 96, "angular": 128, "sphere": 128, "cube": 48, "cross": 48, "hcross": 48}
@@ -161,7 +161,7 @@ def test_cube_file_is_a_strip_in_face_order():
 
 
 def test_resample_refuses_absurd_sizes():
-    from lightprobe.errors import BudgetError
+    from lightprobe.util.errors import BudgetError
 
     with pytest.raises(BudgetError, match="limit"):
         resample(spot_map("latlong", size=8), layout("latlong"), 10**6)
@@ -172,7 +172,7 @@ def test_bad_pixel_counts_match_their_definition(seed):
     """The counts (a min/max fast path, then a full count) against the definition written out: pixels with any
     NaN, any ±inf, any negative finite channel (a pixel may count in several), on arrays sprinkled with every
     kind, and none on a clean array (where −0.0 is not negative)."""
-    from lightprobe.envmap import bad_pixel_counts
+    from lightprobe.maps import bad_pixel_counts
 
     rng = np.random.default_rng(seed)
     px = rng.normal(1.0, 1.0, size=(70000 + seed * 3001, 3)).astype(np.float32)

@@ -1,5 +1,5 @@
 """Engine exports, each evaluated with that engine's own reconstruction formula (written here from the engines'
-documentation and shader code, independently of lightprobe.export), against two golden cases:
+documentation and shader code, independently of lightprobe.exports.sh), against two golden cases:
 
 * white furnace: uniform radiance 1 → E = π, E/π = 1 for every normal;
 * a point light of power Φ from direction s → E(n) = Φ (¼ + ½ cos γ + 5/32 (3cos²γ − 1)), the clamped-cosine series
@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from conftest import random_directions
-from lightprobe.export import TARGETS, export
-from lightprobe.sh import SHCoeffs, delta_light
+from lightprobe.exports.sh import TARGETS, export
+from lightprobe.sh.basis import SHCoeffs, delta_light
 
 SUN = np.array([0.35, 0.75, -0.56])
 SUN /= np.linalg.norm(SUN)

@@ -1,4 +1,4 @@
-"""The flux correction (lightprobe.envmap.flux): the flows are exact, the pre-filter keeps uniform maps uniform and
+"""The flux correction (lightprobe.maps.resampling.flux): the flows are exact, the pre-filter keeps uniform maps uniform and
 positive maps positive, and a sun in any pixel of a cube, angular or mirror-ball source (or a small lat-long's into
 a disc) keeps its energy — through
 the exact every-pixel measure (Resampler.energy_gains) and through resample itself, sun by sun. Each energy test
@@ -11,11 +11,12 @@ import importlib
 import numpy as np
 import pytest
 
-from lightprobe.envmap import EnvMap, Resampler, flux
-from lightprobe.envmap.map import pixel_directions, pixel_solid_angles
-from lightprobe.layouts import layout
+from lightprobe.maps import EnvMap, Resampler
+from lightprobe.maps.resampling import flux
+from lightprobe.maps.envmap import pixel_directions, pixel_solid_angles
+from lightprobe.maps.layouts import layout
 
-resample_module = importlib.import_module("lightprobe.envmap.resampling")
+resample_module = importlib.import_module("lightprobe.maps.resampling.resampler")
 
 COARSE = [("cube", 64, "latlong", 32), ("cube", 64, "angular", 32), ("angular", 128, "latlong", 32),
           ("sphere", 128, "cube", 32), ("cube", 64, "sphere", 32),
@@ -163,7 +164,7 @@ def test_a_disc_sources_rim_slivers_count_by_their_share_of_the_sphere(source, s
     """A pixel the rim barely cuts is read in proportion to its share (layouts._disc_certainty): a sun in the worst
     one comes out within 2× its energy, where counted as a whole pixel it came out ~60–900× — the lookup's own
     doing, so measured before the flux correction."""
-    from lightprobe import layouts as layouts_module
+    from lightprobe.maps import layouts as layouts_module
 
     src = layout(source)
     grid = src.grid_shape(size)
@@ -193,8 +194,8 @@ def test_an_angular_source_is_corrected_to_its_rim_direction():
 def test_each_layout_has_its_own_correction_even_under_one_name():
     """A turned mirror ball is named "sphere" like the plain one: the correction kept for one must not serve the
     other (the cache is keyed by the layouts themselves)."""
-    from lightprobe.frames import rotation_from_ypr
-    from lightprobe.layouts import Sphere
+    from lightprobe.maps.frames import rotation_from_ypr
+    from lightprobe.maps.layouts import Sphere
 
     resample_module._FLUX_CACHE.clear()
     src = layout("cube")

@@ -14,9 +14,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from conftest import shared
-from lightprobe.envmap import read_envmap
-from lightprobe.errors import LightprobeError, LightprobeWarning
-from lightprobe.io import read_image, write_image
+from lightprobe.maps import read_envmap
+from lightprobe.util.errors import LightprobeError, LightprobeWarning
+from lightprobe.maps.images import read_image, write_image
 
 FUZZ = settings(max_examples=60, deadline=5000, suppress_health_check=[HealthCheck.function_scoped_fixture])
 EXTENSIONS = [".hdr", ".exr", ".pfm", ".png", ".jpg"]
@@ -79,7 +79,7 @@ def test_mutated_headers(tmp_path, ext, edits):
 @settings(max_examples=40, deadline=5000, suppress_health_check=[HealthCheck.function_scoped_fixture])
 def test_hdr_header_sizes(tmp_path, w, h):
     """Any claimed size: a clean refusal or a valid image, never another exception. (That no memory of the claimed
-    size is allocated is measured in test_hardening.py::test_f10_the_hdr_reader_never_allocates_…)"""
+    size is allocated is measured in test_hardening.py::test_the_hdr_reader_never_allocates_…)"""
     path = tmp_path / "s.hdr"
     path.write_bytes(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y %d +X %d\n" % (h, w) + b"\x02\x02\x00\x10" * 8)
     _read_or_clean_error(path)
@@ -87,10 +87,10 @@ def test_hdr_header_sizes(tmp_path, w, h):
 
 @functools.lru_cache(maxsize=1)
 def _env_file() -> bytes:
-    from lightprobe.containers import babylon_env
-    from lightprobe.envmap import EnvMap
-    from lightprobe.layouts import LATLONG
-    from lightprobe.sh import project
+    from lightprobe.exports.containers import babylon_env
+    from lightprobe.maps import EnvMap
+    from lightprobe.maps.layouts import LATLONG
+    from lightprobe.sh.basis import project
 
     env = EnvMap(np.ones((8, 16, 3), np.float32), LATLONG)
     return babylon_env(env, project(env, 2), 2)
@@ -101,7 +101,7 @@ def _env_file() -> bytes:
        cut=st.integers(0, 4096))
 def test_env_manifest_reader_returns_a_manifest_or_one_clear_error(edits, cut):
     """Babylon .env bytes cut short and with bytes changed: a dict, or InputError — never another exception."""
-    from lightprobe.containers import read_env_manifest
+    from lightprobe.exports.containers import read_env_manifest
 
     data = bytearray(_env_file()[:cut] if cut < 4096 else _env_file())
     for position, value in edits:

@@ -10,9 +10,9 @@ import pytest
 
 from conftest import shared
 from lightprobe import read_envmap
-from lightprobe.brdf import Conductor, parse_brdf
-from lightprobe.envmap import box_reduce
-from lightprobe.errors import InputError, UsageError
+from lightprobe.glossy.brdf import Conductor, parse_brdf
+from lightprobe.maps import box_reduce
+from lightprobe.util.errors import InputError, UsageError
 from lightprobe.render.compare import relative_mse
 from lightprobe.render.methods import method
 from lightprobe.render.reference import mitsuba_bsdf, reference_render
@@ -109,8 +109,8 @@ def test_bad_materials_name_the_field(tmp_path, material, message):
 
 # ---- the glossy rendering methods ---------------------------------------------------------------------------------
 def _uniform_scene(spec: str, size: int = 24):
-    from lightprobe.envmap import EnvMap
-    from lightprobe.layouts import LATLONG
+    from lightprobe.maps import EnvMap
+    from lightprobe.maps.layouts import LATLONG
 
     return _glossy_sphere(EnvMap(np.ones((32, 64, 3), np.float32), LATLONG), spec, size)
 
@@ -172,7 +172,7 @@ def test_the_render_command_takes_the_glossy_methods(tmp_path, capsys):
     import yaml
 
     from lightprobe.cli import main
-    from lightprobe.io import read_image, write_image
+    from lightprobe.maps.images import read_image, write_image
 
     probe = tmp_path / "probe.exr"
     write_image(probe, np.ones((16, 32, 3), np.float32))

@@ -1,4 +1,4 @@
-"""Issue 7: each finding of the outside attack and review, with a test named after it that failed on the old main.
+"""Hardening: each problem an outside attack or a review found, with a test named after the behaviour it now has.
 
 Subprocess tests run the installed ``lightprobe`` command, so what is checked is what a user's shell sees: the exit
 status, every line on stderr (libraries writing to file descriptor 2 included), and the files left behind.
@@ -24,12 +24,12 @@ import pytest
 from conftest import shared
 from lightprobe.cli import build_parser, main
 from lightprobe.cli.common import ImageSize, Number, NumberList
-from lightprobe.envmap import EnvMap, check_size, read_envmap
-from lightprobe.errors import BudgetError, LightprobeError, UsageError
-from lightprobe.io import write_image
-from lightprobe.peak import run_measured
-from lightprobe.layouts import LATLONG
-from lightprobe.sh import a_hat, project
+from lightprobe.maps import EnvMap, check_size, read_envmap
+from lightprobe.util.errors import BudgetError, LightprobeError, UsageError
+from lightprobe.maps.images import write_image
+from lightprobe_engines.peak import run_measured
+from lightprobe.maps.layouts import LATLONG
+from lightprobe.sh.basis import a_hat, project
 from test_cli import assert_clean_failure, run
 
 EXE = str(Path(sys.executable).with_name("lightprobe"))
@@ -66,14 +66,14 @@ def exact_a_hat(l: int) -> Fraction:
 
 
 @pytest.mark.parametrize("l", range(0, 65))
-def test_f01_a_hat_equals_the_exact_integral_up_to_the_largest_order(l):
+def test_a_hat_equals_the_exact_integral_up_to_the_largest_order(l):
     """Â_l against an independent exact rational value of its defining integral, to the highest order any command
     accepts (sh --order 64). The old int64 code gave Â_24 = 1522.9."""
     exact = float(exact_a_hat(l)) * 2 * pi
     assert a_hat(l) == pytest.approx(exact, rel=1e-13, abs=1e-300)
 
 
-def test_f01_high_orders_reduce_the_error(capsys):
+def test_high_orders_reduce_the_error(capsys):
     code, out, _ = run(capsys, "error", "--order", "2,18,20,22,24", "--window", "none", "--normals", 300, "--json")
     rows = {r["l_max"]: r for r in json.loads(out)}
     assert code == 0
@@ -82,7 +82,7 @@ def test_f01_high_orders_reduce_the_error(capsys):
 
 
 @pytest.mark.parametrize("field", ["fit", "scale"])
-def test_f17_nan_fit_or_scale_is_refused_not_an_empty_scene(tmp_path, field):
+def test_nan_fit_or_scale_is_refused_not_an_empty_scene(tmp_path, field):
     ply = tmp_path / "tri.ply"
     import trimesh
 
@@ -93,7 +93,7 @@ def test_f17_nan_fit_or_scale_is_refused_not_an_empty_scene(tmp_path, field):
     assert not (tmp_path / "r.exr").exists()
 
 
-def test_f18_json_output_is_always_valid_json(tmp_path, capsys):
+def test_json_output_is_always_valid_json(tmp_path, capsys):
     def strict(text):
         return json.loads(text, parse_constant=lambda c: pytest.fail(f"not JSON: {c}"))
 
@@ -168,7 +168,7 @@ def full_disk(tmp_path):
 
 
 @pytest.mark.parametrize("ext", [".png", ".jpg", ".exr", ".hdr"])
-def test_f21_f22_on_a_full_disk_a_good_file_is_never_replaced(full_disk, ext):
+def test_on_a_full_disk_a_good_file_is_never_replaced(full_disk, ext):
     """On a full tmpfs the output cannot be written: one line naming the target, exit 2, the old file intact, no
     temporary file left. (Old main: a truncated PNG renamed over the good file and 'wrote …', exit 0; JPEG:
     libjpeg's own 'Output file write error', exit 1, and its temporary file left.)"""
@@ -184,7 +184,7 @@ def test_f21_f22_on_a_full_disk_a_good_file_is_never_replaced(full_disk, ext):
 
 
 @pytest.mark.parametrize("ext", [".png", ".jpg", ".exr", ".hdr"])
-def test_f21_f22_a_file_size_limit_never_replaces_a_good_file(tmp_path, ext):
+def test_a_file_size_limit_never_replaces_a_good_file(tmp_path, ext):
     """Under a 20 kB file-size limit the output cannot be written: one line, exit 2, the old file intact, no
     temporary file left (old main: a truncated PNG renamed over the good one and 'wrote …'; JPEG: libjpeg's own
     message, exit 1, the temporary file left)."""
@@ -197,7 +197,7 @@ def test_f21_f22_a_file_size_limit_never_replaces_a_good_file(tmp_path, ext):
     assert leftovers(tmp_path) == []
 
 
-def test_f21_design_on_a_full_disk(tmp_path):
+def test_design_on_a_full_disk(tmp_path):
     target = tmp_path / "d.png"
     target.write_bytes(b"keep me")
     res = lightprobe("design", "-o", target, "--size", 64, preexec_fn=_limited_fsize(4000))
@@ -213,7 +213,7 @@ def test_f21_design_on_a_full_disk(tmp_path):
     ["convert", "{src}", "{src}", "--to", "latlong"],
     ["irradiance", "{src}", "-o", "{src}"],
 ])
-def test_f13_an_output_is_never_an_input_nor_text_over_an_image(tmp_path, argv):
+def test_an_output_is_never_an_input_nor_text_over_an_image(tmp_path, argv):
     src = grey_map(tmp_path, "in.exr")
     before = src.read_bytes()
     res = lightprobe(*[a.format(src=src, other=tmp_path / "other") for a in argv])
@@ -225,8 +225,8 @@ def _small_env():
     return EnvMap(np.ones(LATLONG.grid_shape(8) + (3,), np.float32), LATLONG)
 
 
-def test_f14_demo_refuses_a_folder_of_the_users_files(tmp_path):
-    from lightprobe.demo import run_demo
+def test_demo_refuses_a_folder_of_the_users_files(tmp_path):
+    from lightprobe.report.demo import run_demo
 
     out = tmp_path / "mine"
     out.mkdir()
@@ -240,8 +240,8 @@ def test_f14_demo_refuses_a_folder_of_the_users_files(tmp_path):
     assert sorted(p.name for p in out.iterdir()) == ["index.html", "probe.png"]
 
 
-def test_f14_demo_replaces_only_a_previous_report_and_only_when_complete(tmp_path, monkeypatch):
-    import lightprobe.demo as demo
+def test_demo_replaces_only_a_previous_report_and_only_when_complete(tmp_path, monkeypatch):
+    import lightprobe.report.demo as demo
 
     monkeypatch.setattr(demo, "SECTIONS", [demo.section_probe])
     out = tmp_path / "report"
@@ -267,9 +267,9 @@ def test_f14_demo_replaces_only_a_previous_report_and_only_when_complete(tmp_pat
     assert not fresh.exists()
 
 
-def test_f12_sigterm_and_sighup_remove_the_temporary_file(tmp_path):
+def test_sigterm_and_sighup_remove_the_temporary_file(tmp_path):
     script = ("import sys, time\n"
-              "from lightprobe.files import atomic_path, raise_on_termination, Terminated\n"
+              "from lightprobe.util.files import atomic_path, raise_on_termination, Terminated\n"
               "raise_on_termination()\n"
               "try:\n"
               "    with atomic_path(sys.argv[1]) as tmp:\n"
@@ -288,7 +288,7 @@ def test_f12_sigterm_and_sighup_remove_the_temporary_file(tmp_path):
         assert leftovers(tmp_path) == [] and not target.exists()
 
 
-def test_f12_temporaries_of_killed_processes_are_swept_on_the_next_write(tmp_path):
+def test_temporaries_of_killed_processes_are_swept_on_the_next_write(tmp_path):
     dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
     pid = int(dead.stdout)
     stale = [tmp_path / f".probe.exr.lp{pid}-0123abcd.tmp.exr", tmp_path / f".report.lp{pid}-89abcdef.tmp"]
@@ -331,7 +331,7 @@ def test_the_walk_covers_every_numeric_option():
 
 
 @pytest.mark.parametrize("command,flag,bad", NUMERIC_CASES)
-def test_f02_to_f05_every_numeric_option_refuses_out_of_range(tmp_path, capsys, command, flag, bad):
+def test_every_numeric_option_refuses_out_of_range(tmp_path, capsys, command, flag, bad):
     required = [a.format(probe=shared("ict_lowres/grace.hdr"), out=tmp_path / "o") for a in REQUIRED.get(command, [])]
     t0 = time.perf_counter()
     code, _, err = run(capsys, command, *required, f"{flag}={bad}")
@@ -339,27 +339,27 @@ def test_f02_to_f05_every_numeric_option_refuses_out_of_range(tmp_path, capsys, 
     assert time.perf_counter() - t0 < 5 and list(tmp_path.iterdir()) == []
 
 
-def test_f02_render_spp_range_depends_on_the_method(tmp_path, capsys):
+def test_render_spp_range_depends_on_the_method(tmp_path, capsys):
     code, _, err = run(capsys, "render", "-o", tmp_path / "r.exr", "--spp", 17)
     assert_clean_failure(code, err, "--spp for sh must be within 1..16")
 
 
-def test_f04_library_exposure_is_bounded():
-    from lightprobe.tonemap import tonemap
+def test_library_exposure_is_bounded():
+    from lightprobe.maps.tonemap import tonemap
 
     for bad in (1024.0, float("nan"), -1e9):
         with pytest.raises(UsageError, match="exposure"):
             tonemap(np.ones((2, 2, 3)), bad)
 
 
-def test_f05_pixel_counts_are_exact_integers():
+def test_pixel_counts_are_exact_integers():
     with pytest.raises(BudgetError, match=str(2 * 3037000500**2)):
         check_size(LATLONG, 3037000500)
 
 
 def test_library_errors_are_the_packages_own():
-    from lightprobe.export import export
-    from lightprobe.sh import SHCoeffs
+    from lightprobe.exports.sh import export
+    from lightprobe.sh.basis import SHCoeffs
 
     for call in (lambda: project(_small_env(), -1), lambda: export(SHCoeffs(np.zeros((9, 3))), "nope"),
                  lambda: SHCoeffs(np.zeros((9, 3))).windowed("nope"), lambda: a_hat(-1)):
@@ -367,7 +367,7 @@ def test_library_errors_are_the_packages_own():
             call()
 
 
-def test_f06_a_malformed_limit_variable_is_one_line_not_an_import_crash(tmp_path):
+def test_a_malformed_limit_variable_is_one_line_not_an_import_crash(tmp_path):
     assert lightprobe("--help", env={"LIGHTPROBE_MAX_PIXELS": "abc"}).returncode == 0
     for name in ("LIGHTPROBE_MAX_PIXELS", "LIGHTPROBE_MAX_MEMORY", "LIGHTPROBE_MAX_TRIANGLES"):
         res = lightprobe("render", "-o", tmp_path / "r.exr", "--size", "8x8", env={name: "1.5e3x"})
@@ -392,13 +392,13 @@ BAD_SCENES = [
 
 
 @pytest.mark.parametrize("text,words", BAD_SCENES)
-def test_f07_mistyped_scene_fields_name_the_field(tmp_path, capsys, text, words):
+def test_mistyped_scene_fields_name_the_field(tmp_path, capsys, text, words):
     (tmp_path / "s.yaml").write_text(text + "\n")
     code, _, err = run(capsys, "render", tmp_path / "s.yaml", "-o", tmp_path / "r.exr")
     assert_clean_failure(code, err, words)
 
 
-def test_f08_a_yaml_alias_bomb_is_refused_at_once_without_echoing_it(tmp_path):
+def test_a_yaml_alias_bomb_is_refused_at_once_without_echoing_it(tmp_path):
     lines = ['a0: &a0 [1, 1, 1, 1, 1, 1, 1, 1, 1]']
     for k in range(1, 9):
         lines.append(f"a{k}: &a{k} [" + ", ".join([f"*a{k - 1}"] * 9) + "]")
@@ -412,7 +412,7 @@ def test_f08_a_yaml_alias_bomb_is_refused_at_once_without_echoing_it(tmp_path):
     assert time.perf_counter() - t0 < 20 and len(res.stderr) < 300
 
 
-def test_f09_the_triangle_limit_holds_for_the_whole_scene(tmp_path):
+def test_the_triangle_limit_holds_for_the_whole_scene(tmp_path):
     text = "_s: &s {shape: sphere, radius: 0.1}\nmeshes: [" + ", ".join(["*s"] * 3000) + "]\n"
     (tmp_path / "many.yaml").write_text(text)
     assert (tmp_path / "many.yaml").stat().st_size < 13_000
@@ -427,7 +427,7 @@ def peak_of(*argv, env=None) -> tuple[subprocess.CompletedProcess, float]:
     return run_measured([EXE, *argv], env={"LIGHTPROBE_PROGRESS": "0", **(env or {})}, timeout=300)
 
 
-def test_f10_a_decompression_bomb_is_refused_before_it_is_decoded(tmp_path):
+def test_a_decompression_bomb_is_refused_before_it_is_decoded(tmp_path):
     from PIL import Image
 
     bomb = tmp_path / "bomb.png"
@@ -438,7 +438,7 @@ def test_f10_a_decompression_bomb_is_refused_before_it_is_decoded(tmp_path):
     assert peak < 400, peak
 
 
-def test_f10_the_hdr_reader_never_allocates_a_short_files_claimed_size(tmp_path):
+def test_the_hdr_reader_never_allocates_a_short_files_claimed_size(tmp_path):
     """Headers claiming up to 70000 × 70000 pixels on a 100-byte file: refused before allocating (the old test of
     this measured nothing)."""
     from hypothesis import given, settings, strategies as st
@@ -455,7 +455,7 @@ def test_f10_the_hdr_reader_never_allocates_a_short_files_claimed_size(tmp_path)
     make()
     files.append(tmp_path / "huge.hdr")
     files[-1].write_bytes(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 11000 +X 12000\n" + b"\x02\x02\x00\x10" * 8)
-    script = ("import sys, warnings\nfrom lightprobe.io import read_image\nfrom lightprobe.errors import "
+    script = ("import sys, warnings\nfrom lightprobe.maps.images import read_image\nfrom lightprobe.util.errors import "
               "LightprobeError\nfor p in sys.argv[1:]:\n    try:\n        read_image(p)\n"
               "    except LightprobeError:\n        pass\n")
     res, peak = run_measured([sys.executable, "-c", script, *files], timeout=120)
@@ -463,7 +463,7 @@ def test_f10_the_hdr_reader_never_allocates_a_short_files_claimed_size(tmp_path)
     assert peak < 300  # MiB; 11000 × 12000 float RGB alone would be 1.5 GB
 
 
-def test_f20_f23_work_over_the_memory_budget_is_refused_before_it_starts(tmp_path):
+def test_work_over_the_memory_budget_is_refused_before_it_starts(tmp_path):
     for argv in (["convert", shared("ict_lowres/grace.hdr"), tmp_path / "c.exr", "--to", "latlong", "--size", 8192],
                  ["render", "-o", tmp_path / "r.exr", "--size", "4096x4096"],
                  ["render", "-o", tmp_path / "m.exr", "--size", "8192x8192", "-m", "reference"]):
@@ -475,14 +475,14 @@ def test_f20_f23_work_over_the_memory_budget_is_refused_before_it_starts(tmp_pat
     import tempfile
 
     mine = [p for p in Path(tempfile.gettempdir()).glob("lightprobe-mitsuba-*")]
-    from lightprobe.files import process_alive
+    from lightprobe.util.files import process_alive
     from lightprobe.render.reference import SCENE_FOLDER
 
     stale = [p for p in mine if SCENE_FOLDER.match(p.name) and not process_alive(int(SCENE_FOLDER.match(p.name)[1]))]
     assert not stale
 
 
-def test_f23_the_mitsuba_folder_is_gone_once_the_scene_is_loaded(monkeypatch):
+def test_the_mitsuba_folder_is_gone_once_the_scene_is_loaded(monkeypatch):
     import tempfile
 
     from lightprobe.render import reference
@@ -516,7 +516,7 @@ def test_f23_the_mitsuba_folder_is_gone_once_the_scene_is_loaded(monkeypatch):
     assert seen and not seen[0].exists() and str(seen[0]).startswith(tempfile.gettempdir())
 
 
-def test_f16_a_fifo_is_refused_not_waited_on(tmp_path):
+def test_a_fifo_is_refused_not_waited_on(tmp_path):
     fifo = tmp_path / "probe.hdr"
     os.mkfifo(fifo)
     for argv in (["info", fifo], ["sh", fifo], ["render", fifo, "-o", tmp_path / "r.exr"]):
@@ -524,7 +524,7 @@ def test_f16_a_fifo_is_refused_not_waited_on(tmp_path):
         clean_failure(res, "not a regular file")
 
 
-def test_f15_image_libraries_never_print_their_own_lines(tmp_path):
+def test_image_libraries_never_print_their_own_lines(tmp_path):
     from PIL import Image
 
     noisy = tmp_path / "noisy.png"
@@ -540,7 +540,7 @@ def test_f15_image_libraries_never_print_their_own_lines(tmp_path):
     assert len(res.stderr.splitlines()) <= 1 and "Traceback" not in res.stderr, res.stderr
 
 
-def test_f19_messages_say_what_is_true(tmp_path, capsys, monkeypatch):
+def test_messages_say_what_is_true(tmp_path, capsys, monkeypatch):
     (tmp_path / "folder.exr").mkdir()
     code, _, err = run(capsys, "convert", shared("ict_lowres/grace.hdr"), tmp_path / "folder.exr", "--to", "cube")
     assert_clean_failure(code, err, "is a folder")
@@ -559,7 +559,7 @@ def test_f19_messages_say_what_is_true(tmp_path, capsys, monkeypatch):
     assert "--size" not in err
 
 
-def test_f11_a_textured_obj_renders_with_its_texture(tmp_path, capsys):
+def test_a_textured_obj_renders_with_its_texture(tmp_path, capsys):
     """An OBJ with UVs and a texture (MTL + PNG) read from files: the rendered quad shows the texture's colours."""
     from PIL import Image
 
@@ -573,7 +573,7 @@ def test_f11_a_textured_obj_renders_with_its_texture(tmp_path, capsys):
                                      "camera: {eye: [0, 0, 3], target: [0, 0, 0], fov: 30, width: 32, height: 32}\n")
     code, _, err = run(capsys, "render", tmp_path / "s.yaml", "-o", tmp_path / "r.exr")
     assert code == 0, err
-    from lightprobe.io import read_image
+    from lightprobe.maps.images import read_image
 
     image = read_image(tmp_path / "r.exr")
     top, bottom = image[8, 16], image[24, 16]
@@ -597,9 +597,9 @@ def test_one_versioned_sh_json_schema(tmp_path, capsys):
 def test_the_sh_json_reader_refuses_what_is_not_the_schema():
     from hypothesis import example, given, settings, strategies as st
 
-    from lightprobe.errors import InputError
-    from lightprobe.sh import SHCoeffs
-    from lightprobe.shfile import read_sh_json, sh_json
+    from lightprobe.util.errors import InputError
+    from lightprobe.sh.basis import SHCoeffs
+    from lightprobe.sh.shfile import read_sh_json, sh_json
 
     good = json.loads(sh_json(SHCoeffs(np.arange(27.0).reshape(9, 3))))
     json_values = st.recursive(st.none() | st.booleans() | st.integers() | st.floats(allow_nan=False) | st.text(),
@@ -630,7 +630,7 @@ def test_the_sh_json_reader_refuses_what_is_not_the_schema():
 
 
 def test_demo_timings_are_warm(tmp_path, monkeypatch):
-    import lightprobe.demo as demo
+    import lightprobe.report.demo as demo
 
     monkeypatch.setattr(demo, "SECTIONS", [demo.section_sh])
     demo.run_demo(read_envmap(shared("polyhaven_1k/rooitou_park_1k.hdr")), tmp_path / "r")
@@ -640,7 +640,7 @@ def test_demo_timings_are_warm(tmp_path, monkeypatch):
     assert ms < 200, ms  # warm: a 1024×512 map projects in a few ms (the cold figure was 1327 ms)
 
 
-def test_f23_under_a_process_memory_cap_the_reference_is_refused_not_a_crash(tmp_path):
+def test_under_a_process_memory_cap_the_reference_is_refused_not_a_crash(tmp_path):
     """Under ``ulimit -v`` Mitsuba segfaulted at 4096² (exit 139: its own passes of 2³¹ samples); now the address
     space left is checked first, while a small render under the same cap still runs."""
     def cap():

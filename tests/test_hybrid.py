@@ -11,11 +11,11 @@ import pytest
 
 from conftest import shared
 from lightprobe import read_envmap
-from lightprobe.envmap import EnvMap
-from lightprobe.hybrid import DEFAULT_AMBIENT_ORDER, hybrid_error_report, hybrid_irradiance
-from lightprobe.irradiance import brute_irradiance, error_report, reference_normals
-from lightprobe.layouts import LATLONG
-from lightprobe.lights import AreaLight, Decomposition, LightParams
+from lightprobe.maps import EnvMap
+from lightprobe.lights.hybrid import DEFAULT_AMBIENT_ORDER, hybrid_error_report, hybrid_irradiance
+from lightprobe.sh.irradiance import brute_irradiance, error_report, reference_normals
+from lightprobe.maps.layouts import LATLONG
+from lightprobe.lights.decompose import AreaLight, Decomposition, LightParams
 
 
 def _sun_over_a_sky(radius_deg: float, rows: int = 128):

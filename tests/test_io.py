@@ -10,11 +10,11 @@ import OpenImageIO as oiio
 import pytest
 
 from conftest import shared
-from lightprobe import io as lpio
-from lightprobe.envmap import read_envmap
-from lightprobe.errors import LightprobeError, InputError, LightprobeWarning
-from lightprobe.io import read_image, write_image
-from lightprobe.tonemap import aces_filmic, srgb_decode, srgb_encode, tonemap
+from lightprobe.maps import images as lpio
+from lightprobe.maps import read_envmap
+from lightprobe.util.errors import LightprobeError, InputError, LightprobeWarning
+from lightprobe.maps.images import read_image, write_image
+from lightprobe.maps.tonemap import aces_filmic, srgb_decode, srgb_encode, tonemap
 
 
 @pytest.fixture

@@ -6,11 +6,10 @@ import numpy as np
 import pytest
 
 from conftest import random_directions, shared
-from lightprobe.envmap import EnvMap, box_reduce, read_envmap
-from lightprobe.irradiance import (brute_irradiance, error_report, irradiance_map, irradiance_matrices,
-                                   irradiance_polynomial, irradiance_quadratic, reference_normals)
-from lightprobe.layouts import LATLONG
-from lightprobe.sh import SHCoeffs, project
+from lightprobe.maps import EnvMap, box_reduce, read_envmap
+from lightprobe.sh.irradiance import brute_irradiance, error_report, irradiance_map, irradiance_matrices, irradiance_polynomial, irradiance_quadratic, reference_normals
+from lightprobe.maps.layouts import LATLONG
+from lightprobe.sh.basis import SHCoeffs, project
 
 
 def test_matrix_and_polynomial_forms_equal_the_general_formula():
@@ -59,7 +58,7 @@ DEBEVEC = ["angular/beach_probe.hdr", "angular/building_probe.hdr", "angular/cam
 @pytest.mark.parametrize("probe", DEBEVEC)
 def test_paper_error_claim_on_every_debevec_probe(probe):
     """Order 2: mean under 1 %, max under 5 % of total intensity (the paper's claim), while the per-normal relative
-    error — what a person sees on the dark side — is several times larger (SPEC §3: 2–7 % mean, 25–80 % max)."""
+    error — what a person sees on the dark side — is several times larger (docs/spec.md §3: 2–7 % mean, 25–80 % max)."""
     env = box_reduce(read_envmap(shared(f"debevec/{probe}")))
     normals = reference_normals(800)
     r = error_report(env, 2, normals=normals)
@@ -74,7 +73,7 @@ def test_paper_error_claim_on_every_debevec_probe(probe):
 
 
 def independent_errors(env, normals):
-    """SPEC §3's four error figures of order-2 SH, computed here without lightprobe's SH or kernels: the nine
+    """docs/spec.md §3's four error figures of order-2 SH, computed here without lightprobe's SH or kernels: the nine
     basis polynomials written out, Â_l = π, 2π/3, π/4, brute force as one numpy sum over all pixels, Rec. 709
     luminance. Only the pixel directions and solid angles come from lightprobe (tested on their own)."""
     d = env.directions().reshape(-1, 3)

@@ -1,4 +1,4 @@
-"""lightprobe.jit: kernels compiled on their first call, with the helpers they call swapped in first."""
+"""lightprobe.util.jit: kernels compiled on their first call, with the helpers they call swapped in first."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import threading
 import time
 
 SOURCE = textwrap.dedent('''
-    from lightprobe.jit import njit
+    from lightprobe.util.jit import njit
 
     @njit()
     def helper(x):

@@ -1,4 +1,4 @@
-"""Layouts: forward/inverse pairs, exact solid angles, the SPEC's anchor directions, tables that agree."""
+"""Layouts: forward/inverse pairs, exact solid angles, the anchor directions, tables that agree."""
 
 from __future__ import annotations
 
@@ -8,10 +8,9 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from conftest import SPECIAL_DIRECTIONS, random_directions
-from lightprobe.errors import LayoutError
-from lightprobe.layouts import (ANGULAR, CROSS, CUBE, HCROSS, LATLONG, LAYOUTS, PAD, SPHERE, Sphere, detect_layout,
-                                layout)
-from lightprobe.frames import rotation_from_ypr
+from lightprobe.util.errors import LayoutError
+from lightprobe.maps.layouts import ANGULAR, CROSS, CUBE, HCROSS, LATLONG, LAYOUTS, PAD, SPHERE, Sphere, detect_layout, layout
+from lightprobe.maps.frames import rotation_from_ypr
 
 ALL = list(LAYOUTS.values())
 IDS = list(LAYOUTS)
@@ -94,7 +93,7 @@ def test_solid_angles_match_the_density(lay):
 
 
 def test_spec_anchor_directions():
-    """The directions SPEC §2 names, exactly."""
+    """The directions docs/spec.md §2 names, exactly."""
     assert np.allclose(LATLONG.uv_to_dir(0, 0.5, 0.5), [0, 0, -1])  # centre column → −Z (front)
     assert np.allclose(LATLONG.uv_to_dir(0, 0.75, 0.5), [1, 0, 0])  # u = ¾ → +X
     assert np.allclose(LATLONG.uv_to_dir(0, 0.3, 0.0), [0, 1, 0])  # top row → +Y
@@ -121,7 +120,7 @@ def test_spec_anchor_directions():
 @pytest.mark.parametrize("cross", [CROSS, HCROSS], ids=["cross", "hcross"])
 @pytest.mark.parametrize("n", [1, 4, 31])
 def test_cross_and_cube_hold_the_same_texels(cross, n):
-    """The cross's tile table and the cube's face table (two SPEC tables) describe the same texel centres."""
+    """The cross's tile table and the cube's face table (two tables of docs/spec.md §2) describe the same texel centres."""
     faces = np.random.default_rng(n).random((6, n, n, 3)).astype(np.float32)
     image = cross.from_cube(faces)
     np.testing.assert_array_equal(cross.to_cube(image), faces)
@@ -184,7 +183,7 @@ def test_a_cubes_corner_padding_holds_each_corner_texel_once(n):
     """Beyond each face corner (the vertex's missing fourth quadrant) the 2×2 padding holds the next face's corner
     block, each of the 24 × 4 corner-block texels exactly once, on the face next round the vertex; the rest of the
     border is the nearest texel, as before."""
-    from lightprobe.layouts import PAD, _padding_index
+    from lightprobe.maps.layouts import PAD, _padding_index
 
     cube = LAYOUTS["cube"]
     grid = cube.grid_shape(n)

@@ -10,9 +10,9 @@ import pytest
 
 from conftest import shared
 from lightprobe import read_envmap
-from lightprobe.envmap import EnvMap
-from lightprobe.errors import UsageError
-from lightprobe.layouts import LATLONG
+from lightprobe.maps import EnvMap
+from lightprobe.util.errors import UsageError
+from lightprobe.maps.layouts import LATLONG
 from lightprobe.render.compare import relative_mse
 from lightprobe.render.methods import method, visible_cosine_over_cap
 from lightprobe.render.raycast import Tracer

@@ -13,15 +13,15 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from lightprobe.envmap import EnvMap
-from lightprobe.errors import InputError
-from lightprobe.export import filament_coefficients
-from lightprobe.irradiance import brute_irradiance, reference_normals
-from lightprobe.layouts import LATLONG
-from lightprobe.lightexport import (ambient_sh, cap_sh, export_lights, gltf_lights, perpendicular_irradiance)
-from lightprobe.lightsfile import LightSet, read_lights_json
-from lightprobe.sh import SHCoeffs, project
-from lightprobe.frames import WORLD
+from lightprobe.maps import EnvMap
+from lightprobe.util.errors import InputError
+from lightprobe.exports.sh import filament_coefficients
+from lightprobe.sh.irradiance import brute_irradiance, reference_normals
+from lightprobe.maps.layouts import LATLONG
+from lightprobe.exports.lights import ambient_sh, cap_sh, export_lights, gltf_lights, perpendicular_irradiance
+from lightprobe.lights.lightsfile import LightSet, read_lights_json
+from lightprobe.sh.basis import SHCoeffs, project
+from lightprobe.maps.frames import WORLD
 
 
 def _cap_map(d, radius, radiance, rows=512):

@@ -1,4 +1,4 @@
-"""The area-light decomposition (Arbree, Walter & Bala 2005; SPEC §5): exact cap sums, the energy invariant, a known
+"""The area-light decomposition (Arbree, Walter & Bala 2005; docs/spec.md §5): exact cap sums, the energy invariant, a known
 sun found where it is, nothing found where nothing stands out, the paper's Table 1 light counts."""
 
 from __future__ import annotations
@@ -10,10 +10,10 @@ from hypothesis import strategies as st
 
 from conftest import shared
 from lightprobe import read_envmap
-from lightprobe.envmap import EnvMap
-from lightprobe.errors import UsageError
-from lightprobe.layouts import LATLONG
-from lightprobe.lights import LightParams, _row_prefix, cap_sums, decompose
+from lightprobe.maps import EnvMap
+from lightprobe.util.errors import UsageError
+from lightprobe.maps.layouts import LATLONG
+from lightprobe.lights.decompose import LightParams, _row_prefix, cap_sums, decompose
 
 
 def _latlong_directions(h: int, w: int) -> np.ndarray:
@@ -89,7 +89,7 @@ def test_a_sun_is_one_light_where_it_is_with_its_power():
 
 @pytest.mark.parametrize("name", ["debevec/angular/galileo_probe.hdr", "debevec/cross/stpeters_cross.hdr"])
 def test_energy_is_only_moved(name):
-    """SPEC §5's invariant: Σ light power + ∫ ambient dω = ∫ original dω per channel, to float rounding, and the
+    """docs/spec.md §5's invariant: Σ light power + ∫ ambient dω = ∫ original dω per channel, to float rounding, and the
     ambient is the map with exactly the lights' pixels zeroed."""
     env = read_envmap(shared(name))
     dec = decompose(env)
@@ -136,7 +136,7 @@ def test_the_lights_command_writes_the_json_the_ambient_and_a_preview(tmp_path, 
     to the map's, the ambient's radiance SH, every parameter), the ambient map in the input's layout, a preview."""
     import json
 
-    from lightprobe.io import read_image
+    from lightprobe.maps.images import read_image
 
     src = shared("debevec/cross/kitchen_cross.hdr")
     out, amb, pic = tmp_path / "l.json", tmp_path / "ambient.exr", tmp_path / "lights.png"
@@ -175,7 +175,7 @@ def test_the_lights_command_refuses_bad_parameters_in_one_line(tmp_path, capsys)
 def test_a_uniform_map_gives_no_lights_and_all_ambient(tmp_path, capsys):
     import json
 
-    from lightprobe.io import write_image
+    from lightprobe.maps.images import write_image
 
     write_image(tmp_path / "u.exr", np.full((32, 64, 3), 1.5, np.float32))
     code, _, err = _run(capsys, "lights", tmp_path / "u.exr", "-o", tmp_path / "l.json")
@@ -184,7 +184,7 @@ def test_a_uniform_map_gives_no_lights_and_all_ambient(tmp_path, capsys):
 
 
 def test_the_same_probe_in_two_layouts_gives_the_same_lights():
-    """Issue 10: Galileo as an angular map and as a cross — the same lights, centres within a working pixel
+    """Galileo as an angular map and as a cross — the same lights, centres within a working pixel
     (0.7°), the same radii, powers within 1 % (each taken from its own file's pixels and solid angles)."""
     a = decompose(read_envmap(shared("debevec/angular/galileo_probe.hdr")))
     b = decompose(read_envmap(shared("debevec/cross/galileo_cross.hdr")))

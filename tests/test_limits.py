@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from conftest import shared
-from lightprobe.envmap import read_envmap
-from lightprobe.io import write_image
-from lightprobe.layouts import LATLONG
+from lightprobe.maps import read_envmap
+from lightprobe.maps.images import write_image
+from lightprobe.maps.layouts import LATLONG
 from test_hardening import clean_failure, lightprobe, peak_of
 
 
@@ -93,7 +93,7 @@ def test_a_malformed_thread_setting_is_one_line(tmp_path):
 def test_the_command_loads_numba_without_scipys_blas(tmp_path):
     """Numba's array support imports scipy.linalg (~26 MiB resident) only to know whether np.dot may compile; the
     command runs lightprobe's kernels alone, none of which uses it, so it loads numba without it — and scipy still
-    imports afterwards. A library process (no :func:`lightprobe.jit.lean`) keeps numba as numba makes it."""
+    imports afterwards. A library process (no :func:`lightprobe.util.jit.lean`) keeps numba as numba makes it."""
     import subprocess
     import sys
 
@@ -105,7 +105,7 @@ def test_the_command_loads_numba_without_scipys_blas(tmp_path):
               "import scipy.linalg.cython_blas\nprint('importable')\n")
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
     assert out.stdout.split()[-3:] == ["False", "False", "importable"], out.stderr
-    library = ("import sys, numpy as np\nfrom lightprobe.envmap import EnvMap\nfrom lightprobe.layouts import layout\n"
+    library = ("import sys, numpy as np\nfrom lightprobe.maps import EnvMap\nfrom lightprobe.maps.layouts import layout\n"
                "EnvMap(np.ones((64, 128, 3), np.float32), layout('latlong')).to('cube', 8)\n"
                "import numba.np.arraymath as m\nprint(m._HAVE_BLAS)\n")
     out = subprocess.run([sys.executable, "-c", library], capture_output=True, text=True, timeout=300)
@@ -114,7 +114,7 @@ def test_the_command_loads_numba_without_scipys_blas(tmp_path):
 
 @pytest.fixture(scope="module")
 def map_4k(tmp_path_factory):
-    """A 4096×2048 float32 lat-long map (96 MiB of pixels): issue 9's memory case."""
+    """A 4096×2048 float32 lat-long map (96 MiB of pixels): the memory case."""
     path = tmp_path_factory.mktemp("limits4k") / "m4096.exr"
     return write_image(path, read_envmap(shared("polyhaven_1k/rooitou_park_1k.hdr")).to("latlong", 2048).data)
 
@@ -148,8 +148,8 @@ def test_peak_memory_on_a_4k_map_stays_within_a_few_maps(map_4k, tmp_path, argv,
 def test_llvm_pages_are_released_and_kernels_still_run():
     """jit.release_compiler_pages drops libllvmlite's resident file pages once the kernels are linked (Linux), and a
     kernel called afterwards — one linked before, and one linked after (its LLVM pages read back) — still works."""
-    script = ("import numpy as np\nfrom lightprobe.envmap import EnvMap\nfrom lightprobe.layouts import layout\n"
-              "from lightprobe.jit import release_compiler_pages\n"
+    script = ("import numpy as np\nfrom lightprobe.maps import EnvMap\nfrom lightprobe.maps.layouts import layout\n"
+              "from lightprobe.util.jit import release_compiler_pages\n"
               "def file_kib():\n"
               "    return next(int(l.split()[1]) for l in open('/proc/self/status') if l.startswith('RssFile'))\n"
               "env = EnvMap(np.ones((64, 128, 3), np.float32), layout('latlong'))\n"
@@ -173,8 +173,8 @@ def test_kernels_are_linked_on_a_map_that_takes_the_conversions_route(monkeypatc
     """envmap.link_kernels runs a conversion's kernels on a small map before the big one is read: a lat-long of 64
     rows into a disc would be flux-corrected where a 4k one is not, and linking that correction kept ~5 MiB beside
     the map. The small map takes the same turn as the conversion itself would."""
-    from lightprobe.envmap import resampling
-    from lightprobe.layouts import layout
+    from lightprobe.maps.resampling import resampler as resampling
+    from lightprobe.maps.layouts import layout
 
     real = resampling._corrected(LATLONG, (rows, 2 * rows), layout(target), None)
     assert real == corrected

@@ -6,7 +6,7 @@ import sys
 
 import pytest
 
-from lightprobe.peak import run_measured
+from lightprobe_engines.peak import run_measured
 
 
 def test_the_peak_is_the_commands_own_and_its_output_is_kept():

@@ -1,4 +1,4 @@
-"""The balance of a lat-long source's coarsest polar rows (lightprobe.envmap.polar_balance): a row reduced to a few
+"""The balance of a lat-long source's coarsest polar rows (lightprobe.maps.resampling.polar_balance): a row reduced to a few
 cells is read through a periodic B-spline whose basis spans a quarter to a half of the circle, and a turned target's
 subsamples round the pole weighed the cells unequally — a one-pixel sun in the source's pole row came out +0.46 %
 (512×256 → a turned cube of 50), +0.74 % (2048×1024 → turned cubes of 250 and 300) and +0.89 % (a turned lat-long of
@@ -9,11 +9,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from lightprobe.envmap import EnvMap, Resampler, resample
-from lightprobe.envmap import fused, polar, polar_balance, resampling
-from lightprobe.envmap.map import pixel_solid_angles
-from lightprobe.frames import rotation_from_ypr
-from lightprobe.layouts import layout
+from lightprobe.maps import EnvMap, Resampler, resample
+from lightprobe.maps.resampling import fused, polar, polar_balance, resampler as resampling
+from lightprobe.maps.envmap import pixel_solid_angles
+from lightprobe.maps.frames import rotation_from_ypr
+from lightprobe.maps.layouts import layout
 
 LATLONG = layout("latlong")
 TURN = rotation_from_ypr(30, 40, 50)

@@ -1,4 +1,4 @@
-"""GGX-prefiltered mip chains (lightprobe.prefilter): analytic cases and brute-force integration over every texel."""
+"""GGX-prefiltered mip chains (lightprobe.glossy.prefilter): analytic cases and brute-force integration over every texel."""
 
 from __future__ import annotations
 
@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 from conftest import shared
-from lightprobe.envmap import EnvMap, read_envmap, resample
-from lightprobe.errors import UsageError
-from lightprobe.frames import BABYLON
-from lightprobe.layouts import CUBE, LATLONG
-from lightprobe.prefilter import babylon_alphas, ggx_d, lobe_integral, prefilter_cube, split_peaks
+from lightprobe.maps import EnvMap, read_envmap, resample
+from lightprobe.util.errors import UsageError
+from lightprobe.maps.frames import BABYLON
+from lightprobe.maps.layouts import CUBE, LATLONG
+from lightprobe.glossy.prefilter import babylon_alphas, ggx_d, lobe_integral, prefilter_cube, split_peaks
 
 
 

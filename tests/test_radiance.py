@@ -1,4 +1,4 @@
-"""Reflected radiance and radiance maps (SPEC §4): white furnace, a delta light, brute force, views and frames."""
+"""Reflected radiance and radiance maps (docs/spec.md §4): white furnace, a delta light, brute force, views and frames."""
 
 from __future__ import annotations
 
@@ -7,12 +7,11 @@ import pytest
 
 from conftest import random_directions, shared
 from lightprobe import read_envmap
-from lightprobe.brdf import directional_albedo, parse_brdf, reflect
-from lightprobe.envmap import EnvMap
-from lightprobe.errors import UsageError
-from lightprobe.layouts import CUBE, LATLONG
-from lightprobe.radiance import (geodesic_views, prepare, radiance_map, reflected_radiance, sphere_normals,
-                                 view_frame)
+from lightprobe.glossy.brdf import directional_albedo, parse_brdf, reflect
+from lightprobe.maps import EnvMap
+from lightprobe.util.errors import UsageError
+from lightprobe.maps.layouts import CUBE, LATLONG
+from lightprobe.glossy.radiance import geodesic_views, prepare, radiance_map, reflected_radiance, sphere_normals, view_frame
 
 BRDFS = ["lambert", "phong:n=50", "blinn:n=20", "ggx:alpha=0.1", "ggx:alpha=0.2,conductor=gold",
          "ggx:alpha=0.4,f0=0.04", "coat:alpha=0.1,albedo=0.8/0.2/0.1"]
@@ -134,18 +133,18 @@ def _run(capsys, *argv):
 
 @pytest.fixture(scope="module")
 def small_probe(tmp_path_factory):
-    from lightprobe.io import write_image
+    from lightprobe.maps.images import write_image
 
     path = tmp_path_factory.mktemp("probe") / "probe.exr"
     env = read_envmap(shared("debevec/angular/grace_probe.hdr"))
-    from lightprobe.envmap import resample
+    from lightprobe.maps import resample
 
     write_image(path, resample(env, LATLONG, 64).data)
     return path
 
 
 def test_the_command_writes_a_set_that_reads_back(tmp_path, capsys, small_probe):
-    from lightprobe.radiancefile import read_radiance_set
+    from lightprobe.glossy.radiancefile import read_radiance_set
 
     out = tmp_path / "maps"
     code, text, err = _run(capsys, "radiance", small_probe, "--brdf", "ggx:alpha=0.3,conductor=gold", "--size", 32,
@@ -172,7 +171,7 @@ def test_the_command_writes_a_set_that_reads_back(tmp_path, capsys, small_probe)
 
 
 def test_one_view_writes_the_map_and_its_frame(tmp_path, capsys, small_probe):
-    from lightprobe.radiancefile import read_radiance_set
+    from lightprobe.glossy.radiancefile import read_radiance_set
 
     out = tmp_path / "one.exr"
     code, _, err = _run(capsys, "radiance", small_probe, "--brdf", "phong:n=30", "--view", "1,1,0", "--size", 24,
@@ -208,9 +207,9 @@ def test_a_folder_that_is_not_a_set_is_not_overwritten(tmp_path, capsys, small_p
 def test_damaged_sets_are_refused_with_one_line(tmp_path, capsys, small_probe):
     import json
 
-    from lightprobe.errors import InputError
-    from lightprobe.io import read_image, write_image
-    from lightprobe.radiancefile import read_radiance_set
+    from lightprobe.util.errors import InputError
+    from lightprobe.maps.images import read_image, write_image
+    from lightprobe.glossy.radiancefile import read_radiance_set
 
     out = tmp_path / "maps"
     assert _run(capsys, "radiance", small_probe, "--brdf", "lambert", "--size", 8, "-o", out)[0] == 0
@@ -263,8 +262,8 @@ def test_the_manifest_reader_returns_a_set_or_one_clear_error(tmp_path_factory, 
     from hypothesis import strategies as st
 
     from lightprobe.cli import main
-    from lightprobe.errors import InputError
-    from lightprobe.radiancefile import read_radiance_set
+    from lightprobe.util.errors import InputError
+    from lightprobe.glossy.radiancefile import read_radiance_set
 
     out = tmp_path_factory.mktemp("fuzz") / "maps"
     assert main(["radiance", str(small_probe), "--brdf", "lambert", "--size", "4", "-o", str(out)]) == 0

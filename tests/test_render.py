@@ -9,17 +9,16 @@ import numpy as np
 import pytest
 
 from conftest import shared
-from lightprobe.envmap import EnvMap, box_reduce, read_envmap
-from lightprobe.errors import InputError, LightprobeError
-from lightprobe.layouts import LATLONG
+from lightprobe.maps import EnvMap, box_reduce, read_envmap
+from lightprobe.util.errors import InputError, LightprobeError
+from lightprobe.maps.layouts import LATLONG
 from lightprobe.render.compare import compare, mare, relative_mse
 from lightprobe.render.methods import method
 from lightprobe.render.raycast import Tracer
 from lightprobe.render.reference import mitsuba_latlong, reference_coverage, reference_render
 from lightprobe.render.renderer import render
 from lightprobe.render.scenefile import load_scene
-from lightprobe.render.scene import (Camera, Material, Scene, ground_plane, mesh_instance, mesh_scene, sphere, sphere_scene,
-                                     with_key_light_at, key_light_azimuth)
+from lightprobe.render.scene import Camera, Material, Scene, ground_plane, mesh_instance, mesh_scene, sphere, sphere_scene, with_key_light_at, key_light_azimuth
 from test_envmap import spot_map
 
 
@@ -219,7 +218,7 @@ def test_key_light_turn():
 def test_render_cli(tmp_path, capsys):
     from test_cli import run
 
-    from lightprobe.io import read_image
+    from lightprobe.maps.images import read_image
 
     code, out, _ = run(capsys, "render", "-o", tmp_path / "r.exr", "--size", "24x16", "--spp", 1)
     assert code == 0 and read_image(tmp_path / "r.exr").shape == (16, 24, 3)

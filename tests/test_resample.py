@@ -11,13 +11,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lightprobe.envmap import EnvMap
-from lightprobe.envmap import fused
-from lightprobe.envmap.map import pixel_directions
-from lightprobe.envmap.resampling import _fused_resample, reference_resample, resample
-from lightprobe.frames import rotation_from_ypr
-from lightprobe.jit import dispatcher
-from lightprobe.layouts import CUBE, LATLONG, LAYOUTS, Sphere, layout
+from lightprobe.maps import EnvMap
+from lightprobe.maps.resampling import fused
+from lightprobe.maps.envmap import pixel_directions
+from lightprobe.maps.resampling.resampler import _fused_resample, reference_resample, resample
+from lightprobe.maps.frames import rotation_from_ypr
+from lightprobe.util.jit import dispatcher
+from lightprobe.maps.layouts import CUBE, LATLONG, LAYOUTS, Sphere, layout
 
 TURN = rotation_from_ypr(30, 20, 10)
 TARGETS = {**LAYOUTS, "sphere-turned": Sphere(rotation_from_ypr(-40, 25, 5))}
@@ -165,7 +165,7 @@ def _sun_map(d, h=128):
 
 @pytest.mark.parametrize("where, target, size", list(_sun_cases()))
 def test_a_sub_pixel_sun_keeps_its_energy_anywhere(where, target, size):
-    """Issue 9's accuracy bar: a sun in one source pixel (smaller than a target pixel or larger, by the sizes),
+    """The accuracy bar: a sun in one source pixel (smaller than a target pixel or larger, by the sizes),
     holding 10× the sky's power, at cube corners and edges, face centres, the seam, near the pole, oblique — keeps
     ∫L dω within 0.2 %."""
     src, _ = _sun_map(SUN_DIRECTIONS[where])
@@ -204,7 +204,7 @@ def test_a_sun_near_a_latlong_pole_keeps_its_energy(target, size, turn):
 def test_a_sun_in_the_pole_row_keeps_its_energy(target):
     """The plain cubic B-spline reflected across a pole gives the first row a weight whose ∫ dω is 1.25× the row's
     own solid angle, so a sun wholly in that row (within 180°/H of the pole) gained ~22 % of ∫L dω. The rational
-    weights of :mod:`lightprobe.envmap.pole_rows` spread that excess over 24 rows (0.043 % each)."""
+    weights of :mod:`lightprobe.maps.resampling.pole_rows` spread that excess over 24 rows (0.043 % each)."""
     src, row = _sun_map((0.001, 1, 0.002))
     assert row == 0
     out = src.to(target, 96)
@@ -226,7 +226,7 @@ def test_a_pole_row_sun_keeps_its_energy_in_a_small_cube(size, height):
 def test_a_pole_row_sun_keeps_its_energy_in_coarse_flat_targets(target, size):
     """Mirror-ball and angular targets of 32–80 pixels: the pixel over the pole has its subsamples within a row or
     two of it, where even the deepest azimuthal reduction (4–8 wedges) was hit or missed by them: ±2–4 % before
-    the whole-row reading of :func:`lightprobe.envmap.polar.polar_levels`. Targets of a few hundred pixels (cube 8,
+    the whole-row reading of :func:`lightprobe.maps.resampling.polar.polar_levels`. Targets of a few hundred pixels (cube 8,
     angular 16) box-reduced the 128-row source to 32 rows, under the rational weights' least height: +22 % before
     the reduction stopped at 48 rows."""
     src, _ = _sun_map((0.001, 1, 0.002))
@@ -236,9 +236,9 @@ def test_a_pole_row_sun_keeps_its_energy_in_coarse_flat_targets(target, size):
 @pytest.mark.parametrize("size, yaw", [(16, 0), (64, 0), (96, 0), (128, 0), (64, 37)])
 def test_a_pole_row_sun_keeps_its_energy_in_a_latlong_target(size, yaw):
     """A lat-long target on the source's rows (unturned, or turned about the vertical): its polar rows are
-    integrated exactly in θ (:mod:`lightprobe.envmap.separable`). The k midpoints in θ, where dω ∝ θ, gave a
+    integrated exactly in θ (:mod:`lightprobe.maps.resampling.separable`). The k midpoints in θ, where dω ∝ θ, gave a
     sun wholly in the source's first row +1.5–1.9 %."""
-    from lightprobe.frames import rotation_from_ypr
+    from lightprobe.maps.frames import rotation_from_ypr
 
     src, _ = _sun_map((0.001, 1, 0.002))
     turn = rotation_from_ypr(yaw, 0, 0) if yaw else None
@@ -246,11 +246,11 @@ def test_a_pole_row_sun_keeps_its_energy_in_a_latlong_target(size, yaw):
 
 
 def test_the_separable_rows_are_the_midpoint_rows_in_the_limit():
-    """Lat-long → lat-long on the same rows is two sparse products (:mod:`lightprobe.envmap.separable`): its
+    """Lat-long → lat-long on the same rows is two sparse products (:mod:`lightprobe.maps.resampling.separable`): its
     rows agree with the kernel's own k×k midpoint rows at k = 48 on a smooth map — the same reconstruction,
     integrated exactly in θ rather than by midpoints."""
-    from lightprobe.envmap import separable
-    from lightprobe.envmap.resampling import _fused_resample
+    from lightprobe.maps.resampling import separable
+    from lightprobe.maps.resampling.resampler import _fused_resample
 
     rng = np.random.default_rng(3)
     src = EnvMap(rng.gamma(2.0, 1.0, (64, 128, 3)).astype(np.float32), LATLONG)
@@ -262,7 +262,7 @@ def test_the_separable_rows_are_the_midpoint_rows_in_the_limit():
 
 
 def test_the_separable_rows_keep_a_uniform_map_exact():
-    from lightprobe.envmap import separable
+    from lightprobe.maps.resampling import separable
 
     for grid, k, turn in (((40, 80), 5, None), ((96, 192), 2, TURN_ABOUT_UP)):
         rows = separable.Separable((96, 192), grid, k, turn).band(np.full((96, 192, 3), 0.7, np.float32), 0,
@@ -287,7 +287,7 @@ def test_a_sun_anywhere_keeps_its_energy_into_a_latlong(size):
 
 
 def test_the_separable_conversion_serves_yawed_targets_only():
-    from lightprobe.envmap import separable
+    from lightprobe.maps.resampling import separable
 
     assert separable.applies(LATLONG, LATLONG, None) and separable.applies(LATLONG, LATLONG, TURN_ABOUT_UP)
     assert not separable.applies(LATLONG, LATLONG, TURN) and not separable.applies(LATLONG, CUBE, None)
@@ -297,8 +297,8 @@ def test_the_separable_conversion_serves_yawed_targets_only():
 def _kept_gains(source: str, size: int, target: str, out_size: int, rotation=None) -> np.ndarray:
     """|energy gain| of a sun in every source pixel (Resampler.energy_gains), pixels within 25° of a disc's rim
     direction (source's or target's: one direction spread over a ring) left out, as benchmarks/bench_energy.py."""
-    from lightprobe.envmap import Resampler
-    from lightprobe.layouts import layout
+    from lightprobe.maps import Resampler
+    from lightprobe.maps.layouts import layout
 
     src = layout(source)
     gains = np.abs(Resampler(src, src.grid_shape(size), layout(target), out_size,
@@ -308,9 +308,9 @@ def _kept_gains(source: str, size: int, target: str, out_size: int, rotation=Non
 
 def test_energy_gains_leave_out_the_rims():
     """rim_margin blanks the pixels near either layout's rim direction, and only those."""
-    from lightprobe.envmap import Resampler
-    from lightprobe.envmap.map import pixel_directions
-    from lightprobe.layouts import layout
+    from lightprobe.maps import Resampler
+    from lightprobe.maps.envmap import pixel_directions
+    from lightprobe.maps.layouts import layout
 
     angular = layout("angular")
     all_gains = Resampler(LATLONG, (32, 64), angular, 16).energy_gains()
@@ -331,8 +331,8 @@ def test_energy_gains_are_a_sun_converted_directly(source, size, target, out_siz
     """Resampler.energy_gains (every pixel at once, from the weights) against a one-pixel sun put through
     :func:`resample`: the same gain, on every path (footprint tiles, reduced polar rows, the separable lat-long,
     a box-reduced source)."""
-    from lightprobe.envmap import Resampler
-    from lightprobe.layouts import layout
+    from lightprobe.maps import Resampler
+    from lightprobe.maps.layouts import layout
 
     src, tgt = layout(source), layout(target)
     grid = src.grid_shape(size)
@@ -346,7 +346,7 @@ def test_energy_gains_are_a_sun_converted_directly(source, size, target, out_siz
     assert np.isnan(gains[src.solid_angles(grid) == 0]).all()
 
 
-# Worst |gain| of a one-pixel sun over every source pixel kept (issue 9's bar is 0.2 %), measured 2026-12-05, and
+# Worst |gain| of a one-pixel sun over every source pixel kept (the bar is 0.2 %), measured 2026-12-05, and
 # what it was before this stop's fixes: per-pixel rates, a lat-long target's pole rows ramped, the cube's corner padding.
 GAIN_CEILINGS = [  # every pixel of the source as the sun; cube, angular and mirror-ball sources flux-corrected
     ("angular", 128, "latlong", 64, 0.0001),  # was 15.5 % (0.3 % before the flux correction)
@@ -377,8 +377,8 @@ def test_a_lat_long_into_a_disc_at_its_default_size_keeps_every_suns_energy(targ
     """A 1024×512 lat-long into a disc of its default size (817), every pixel, no rim margin: before the lat-long's
     flux correction reached 2048×1024 (it stopped at 2^16 pixels), the rates' steps mid-ball left 0.33 % and an
     angular map's rim direction 0.32 %; corrected, every pixel is exact."""
-    from lightprobe.envmap import Resampler
-    from lightprobe.envmap.resampling import _corrected
+    from lightprobe.maps import Resampler
+    from lightprobe.maps.resampling.resampler import _corrected
 
     src = layout("latlong")
     assert layout(target).default_size(src.grid_shape(512)[0] * src.grid_shape(512)[1]) == out_size
@@ -406,7 +406,7 @@ def test_graded_cells_are_plain_between_equal_rates_and_meet_at_a_step():
     """fused._graded: the identity where the neighbours' rates equal the pixel's; across a pixel edge where the
     rate steps from k_a to k_b, the two end cells have the same width, 2/(k_a + k_b); positions stay in order
     inside the pixel."""
-    from lightprobe.envmap.fused import _graded
+    from lightprobe.maps.resampling.fused import _graded
 
     for k in (2, 5, 16):
         t = (np.arange(k) + 0.5) / k
@@ -425,7 +425,7 @@ def test_a_turned_cube_keeps_the_energy_of_its_vertex_texels():
     """A cube's corner texels are read across a jump where three faces meet; the target pixels round the vertices
     take more subsamples (fused.CUBE_VERTEX_REACH). Turned, a cube into a cube had its worst pixel there at
     2.2 % (64 texels) and 2.0 % (256); unturned, the jump lies between target pixels and the rate is not raised."""
-    from lightprobe.frames import rotation_from_ypr
+    from lightprobe.maps.frames import rotation_from_ypr
 
     turned = _kept_gains("cube", 64, "cube", 64, rotation_from_ypr(30, 20, 10))
     assert turned.max() < 0.0001, f"{100 * turned.max():.3f} %"  # 0.57 % balanced, 1.1 % before; flux-corrected
@@ -440,9 +440,9 @@ _PAIRS = [("cube", "latlong"), ("cube", "angular"), ("cube", "sphere"), ("angula
 @pytest.mark.parametrize("source, target, out_size", [(s, t, 32) for s, t in _PAIRS] + [
     (s, t, 16) for s, t in _PAIRS + [("sphere", "sphere")]])
 def test_a_sun_in_any_pixel_of_any_source_keeps_its_energy(source, target, out_size):
-    """Issue 9's bar, every pixel at once: a sun in any pixel of any source keeps its energy within 0.2 % into a
+    """The 0.2 % bar, every pixel at once: a sun in any pixel of any source keeps its energy within 0.2 % into a
     coarse target (16 or 32 pixels), the pair's flux correction applied where it is made
-    (:mod:`lightprobe.envmap.flux`). Without it: a cube's corner texels 2.4 % into a lat-long of 32 rows, 1.8 % into
+    (:mod:`lightprobe.maps.resampling.flux`). Without it: a cube's corner texels 2.4 % into a lat-long of 32 rows, 1.8 % into
     an angular map of 32, 0.24–0.42 % from discs, 0.26–0.74 % from a lat-long into 16–32-pixel discs
     (tests/test_flux.py keeps the uncorrected figures failing). A mirror ball into 16-pixel targets other than a cube
     was halved to 64 pixels, whose blocks straddle the 25° rim margin (19–24 % there): it keeps 128
@@ -458,9 +458,9 @@ def test_a_mirror_balls_ring_is_corrected_to_its_rim(floor, monkeypatch):
     keeps its sun's energy with no margin, kept at 128 or halved to 64. Left alone within 20° of its rim direction,
     as they once were, they came out far off — and halved to 64, blocks just outside the 25° margin 19–24 % (why
     resampling.SPHERE_MIN_SIDE was set)."""
-    from lightprobe.envmap import Resampler
+    from lightprobe.maps import Resampler
 
-    resample_module = importlib.import_module("lightprobe.envmap.resampling")
+    resample_module = importlib.import_module("lightprobe.maps.resampling.resampler")
     monkeypatch.setattr(resample_module, "SPHERE_MIN_SIDE", floor)
     ball = layout("sphere")
     grid = ball.grid_shape(128)
@@ -478,7 +478,7 @@ def test_points_off_a_disc_target_take_no_step():
     own rim as rounding falls: such points measured steps of 0–30 pixels (mirror ball 32 → mirror ball 20), and
     their rates graded their valid neighbours' cells — the cached taps and the direct pass once differed by 10 % on
     rim pixels. They take no step, so the pixels off the disc keep the base rate."""
-    from lightprobe.envmap import fused
+    from lightprobe.maps.resampling import fused
 
     sphere, axes, turn = fused.CODES["sphere"], np.eye(3), np.eye(3)
     for kind in (sphere, fused.CODES["angular"]):
@@ -492,7 +492,7 @@ def test_points_off_a_disc_target_take_no_step():
 
 
 def test_a_sun_in_the_pole_row_keeps_its_energy_everywhere():
-    """A source of fewer than :data:`lightprobe.envmap.pole_rows.MIN_HEIGHT` (48) rows keeps the plain B-spline at
+    """A source of fewer than :data:`lightprobe.maps.resampling.pole_rows.MIN_HEIGHT` (48) rows keeps the plain B-spline at
     its poles (+22–25 % for a sun in the first row); it is flux-corrected into every layout instead."""
     src, _ = _sun_map((0.001, 1, 0.002), h=32)
     np.testing.assert_allclose(src.to("cube", 16).integral(), src.integral(), rtol=2e-3)
@@ -504,15 +504,15 @@ def test_every_pixel_of_a_source_under_48_rows_keeps_its_energy(rows, target, ou
     """Every pixel of a lat-long too short for the rational pole rows, as the sun: exact with its flux correction
     (into a lat-long too: it takes the kernel, not the separable rows, whose pole rows it would not correct); and
     without it the pole rows are off by over 20 %, so the test can fail."""
-    from lightprobe.envmap import Resampler
-    from lightprobe.layouts import layout
+    from lightprobe.maps import Resampler
+    from lightprobe.maps.layouts import layout
 
     def worst():
         gains = np.abs(Resampler(LATLONG, (rows, 2 * rows), layout(target), out_size).energy_gains(rim_margin=25))
         return np.nanmax(gains)
 
     assert worst() < 1e-5
-    resample_module = importlib.import_module("lightprobe.envmap.resampling")
+    resample_module = importlib.import_module("lightprobe.maps.resampling.resampler")
     monkeypatch.setattr(resample_module, "_flux_stencil", lambda *args, **kwargs: None)
     assert worst() > 0.2
 
@@ -521,7 +521,7 @@ def test_every_pixel_of_a_source_under_48_rows_keeps_its_energy(rows, target, ou
 def test_the_pole_row_factors_are_the_solved_ones(tier):
     """The literal factors in pole_rows are what its solve gives (a stale table after a change of TIERS would not
     keep the rows' energy), and the excess each row carries is the one quoted."""
-    from lightprobe.envmap import pole_rows
+    from lightprobe.maps.resampling import pole_rows
 
     rows = pole_rows.TIERS[tier][1]
     factors, excess = pole_rows.solve(rows)
@@ -535,7 +535,7 @@ def test_the_pole_row_factors_are_the_solved_ones(tier):
 def _kernel_row_energy(h: int, rational: bool) -> np.ndarray:
     """∫ (weight of source row j) dω over the lookup coordinate y ∈ [−½, h − ½] with the kernel's own tap weights
     (the compiled helpers, called from Python) and the exact sin θ measure, over each row's own solid angle."""
-    from lightprobe.envmap import fused
+    from lightprobe.maps.resampling import fused
 
     x, w = np.polynomial.legendre.leggauss(8)
     energy = np.zeros(h)
@@ -561,7 +561,7 @@ def test_every_latlong_row_keeps_its_solid_angle_in_the_kernel(h):
     |ε| within 15 % of its tier's excess (0.043 % from 96 rows, 0.098 % from 64, 0.17 % from 48): a sun anywhere,
     the pole row included, keeps ∫L dω. The plain B-spline, for contrast, gives the first row 1.25× its solid angle
     (what this test would catch if the rational weights were dropped)."""
-    from lightprobe.envmap import pole_rows
+    from lightprobe.maps.resampling import pole_rows
 
     bound = 1.15 * pole_rows.EXCESS[pole_rows.tier(h)]
     excess = _kernel_row_energy(h, rational=True)
@@ -571,7 +571,7 @@ def test_every_latlong_row_keeps_its_solid_angle_in_the_kernel(h):
 
 
 def test_maps_under_the_least_tier_keep_the_plain_spline():
-    from lightprobe.envmap import pole_rows
+    from lightprobe.maps.resampling import pole_rows
 
     assert pole_rows.tier(47) == -1 and pole_rows.reach(47) == 0 and pole_rows.reach(48) == 14
     assert np.abs(_kernel_row_energy(32, rational=True) - _kernel_row_energy(32, rational=False)).max() == 0
@@ -580,8 +580,8 @@ def test_maps_under_the_least_tier_keep_the_plain_spline():
 @pytest.mark.parametrize("turn", [None, TURN], ids=["fixed", "turned"])
 @pytest.mark.parametrize("target", list(TARGETS))
 def test_uniform_maps_stay_exactly_uniform_with_reduced_polar_rows(target, turn):
-    from lightprobe.envmap import polar
-    from lightprobe.envmap.resampling import _plan
+    from lightprobe.maps.resampling import polar
+    from lightprobe.maps.resampling.resampler import _plan
 
     lay = TARGETS[target]
     src = EnvMap(np.full((64, 128, 3), 2.5, np.float32), LATLONG)
@@ -600,7 +600,7 @@ def test_uniform_maps_stay_exactly_uniform_with_reduced_polar_rows(target, turn)
 def test_reduced_rows_are_the_mean_of_their_columns():
     """Each reduced row is the mean of 2^ℓ neighbouring columns (so ∫L dω of the row is kept: its pixels share one
     solid angle), at the offsets the kernel reads, the same bits as numpy's float32 pair means."""
-    from lightprobe.envmap import polar
+    from lightprobe.maps.resampling import polar
 
     rng = np.random.default_rng(4)
     data = rng.gamma(0.5, 1.0, (40, 80, 3)).astype(np.float32)
@@ -624,7 +624,7 @@ def test_a_whole_row_level_reads_the_rows_mean():
     """A level past the deepest reduction (:func:`polar.max_level` + 1: lookups further apart than a quarter
     turn, next to a pole) fills the row's reduced columns with the row's mean — so its ∫L dω is kept and it reads
     the same at every azimuth — and a uniform row stays exactly uniform."""
-    from lightprobe.envmap import polar
+    from lightprobe.maps.resampling import polar
 
     rng = np.random.default_rng(5)
     data = rng.gamma(0.5, 1.0, (40, 96, 3)).astype(np.float32)
@@ -647,7 +647,7 @@ def test_a_width_that_cannot_be_halved_is_read_as_it_is():
     overlaps, to at least polar.MIN_OVERLAP_CELLS columns (30 → 15 → 8; 746 → 373 → 187 → 93 → 47 → 23 → 12)."""
     import warnings
 
-    from lightprobe.envmap import polar
+    from lightprobe.maps.resampling import polar
 
     data = np.ones((3, 6, 3), np.float32)
     levels = np.zeros(3, np.int64)
@@ -665,7 +665,7 @@ def test_a_row_reduced_by_overlaps_keeps_its_energy_and_a_uniform_row():
     """W / 2^ℓ not whole (W = 1610 = 2 × 805: 805, 403, 201, …): each reduced column is the mean of the columns it
     overlaps, by their shares, so the row's sum over its columns is kept, a sun in one column keeps its share
     whole, and a uniform row stays exactly uniform."""
-    from lightprobe.envmap import polar
+    from lightprobe.maps.resampling import polar
 
     rng = np.random.default_rng(6)
     data = rng.gamma(0.5, 1.0, (12, 1610, 3)).astype(np.float32)
@@ -694,8 +694,8 @@ def test_a_smooth_field_by_the_poles_keeps_its_detail_whatever_the_width(rows, t
     reductions could not reach as their mean, flat in azimuth: within 12° of each pole L came out up to 0.10 off
     (806 and 805 rows → cube 128, 373 → 64), 0.057 (1000 → cube 96). Rows reduced by overlaps past their last
     halving keep it under 0.003."""
-    from lightprobe.envmap import EnvMap
-    from lightprobe.envmap.map import pixel_directions
+    from lightprobe.maps import EnvMap
+    from lightprobe.maps.envmap import pixel_directions
 
     src, lay = layout("latlong"), layout(target)
     d = pixel_directions(src, src.grid_shape(rows))
@@ -713,7 +713,7 @@ def test_a_lat_long_of_odd_height_keeps_every_suns_energy(rows, target, size):
     once, to an odd width, and are read half a turn on across the pole at a half column. Before, such a width had
     no reduction at all, and a sun by the pole took +2920 % (746×373 → cube 352) and +1923 % (998 rows → mirror
     ball 326) of its energy. Every pixel of the source, no margin."""
-    from lightprobe.envmap import Resampler
+    from lightprobe.maps import Resampler
 
     src = layout("latlong")
     gains = np.abs(Resampler(src, src.grid_shape(rows), layout(target), size).energy_gains())
@@ -725,7 +725,7 @@ def test_an_odd_height_lat_long_halves_keeping_every_pixels_energy():
     """resampling._odd_box_reduce (H odd → ⌊H/2⌋ rows, its rows cannot pair): each old pixel's ∫L dω is shared
     whole among the new pixels it overlaps — a sun in any pixel keeps its energy to float rounding, a uniform map
     stays uniform, and the map's integral is kept."""
-    from lightprobe.envmap.resampling import _odd_box_reduce
+    from lightprobe.maps.resampling.resampler import _odd_box_reduce
 
     rng = np.random.default_rng(9)
     src = EnvMap(rng.gamma(0.5, 1.0, (45, 90, 3)).astype(np.float32), LATLONG)
@@ -746,8 +746,8 @@ def test_a_lat_long_of_odd_height_is_halved_for_a_small_target(rows, target, siz
     """A lat-long of odd height could not be box-reduced, and a small target read it whole: 894×447 → mirror ball
     31 turned (yaw 30°, pitch 20°, roll 10°) 70 % off, past what the flux correction mends; 2002×1001 → cube 61
     0.36 %. Halved exactly (:func:`_odd_box_reduce`), the ball is exact and the cube within the bar. Every pixel."""
-    from lightprobe.envmap import Resampler
-    from lightprobe.frames import rotation_from_ypr
+    from lightprobe.maps import Resampler
+    from lightprobe.maps.frames import rotation_from_ypr
 
     turn = rotation_from_ypr(30, 20, 10) if target == "sphere" else None
     gains = Resampler(LATLONG, LATLONG.grid_shape(rows), layout(target), size, rotation=turn).energy_gains()
@@ -759,8 +759,8 @@ def test_lookups_nearer_the_pole_than_their_pixel_spread_over_more_columns():
     """A mirror ball's pixel next to the zenith has its centre a few rows from the pole, its subsamples nearer:
     the rows between take its column spacing × sin θ_centre / sin θ_row, so the pole row is read whole. A
     lat-long target's rows are the source's: its spacing is the same at every row, and its rows stay as they are."""
-    from lightprobe.envmap import polar
-    from lightprobe.envmap.resampling import _prepared
+    from lightprobe.maps.resampling import polar
+    from lightprobe.maps.resampling.resampler import _prepared
 
     src, _ = _sun_map((0.001, 1, 0.002))
     source, _, k, steps = _prepared(src, TARGETS["sphere"], 64, None)
@@ -775,8 +775,8 @@ def test_lookups_nearer_the_pole_than_their_pixel_spread_over_more_columns():
 def test_polar_levels_never_fall_towards_a_pole(target, rows, size):
     """The pairs whose measured levels dipped towards a pole (a row the sampled footprints missed): each row's
     level is at least that of every row between it and the equator."""
-    from lightprobe.envmap import polar
-    from lightprobe.envmap.resampling import supersampling
+    from lightprobe.maps.resampling import polar
+    from lightprobe.maps.resampling.resampler import supersampling
 
     grid = (rows, 2 * rows)
     k, steps = supersampling(LATLONG, grid, layout(target), layout(target).grid_shape(size), None, None)
@@ -816,9 +816,9 @@ def test_a_sun_near_the_pole_stays_where_it_was(theta):
 @pytest.mark.parametrize("target", list(TARGETS))
 @pytest.mark.parametrize("source", SOURCES + ("cross",))
 def test_cached_weights_equal_the_direct_path(sources, source, target, turn):
-    """Issue 9: the weights computed once and applied as one gather give what the direct kernel computes, to float32
+    """the weights computed once and applied as one gather give what the direct kernel computes, to float32
     rounding (1e-6 of the maximum: the sums are regrouped), for every source × target × rotation."""
-    from lightprobe.envmap import Resampler, resample
+    from lightprobe.maps import Resampler, resample
 
     src = sources[source] if source != "cross" else sources["cube"].to("cross", 16)
     lay = TARGETS[target]
@@ -834,8 +834,8 @@ def test_cached_weights_equal_the_direct_path(sources, source, target, turn):
 
 
 def test_a_resampler_refuses_other_maps_and_does_not_cache_box_reductions(sources):
-    from lightprobe.envmap import Resampler, resample
-    from lightprobe.errors import LayoutError
+    from lightprobe.maps import Resampler, resample
+    from lightprobe.util.errors import LayoutError
 
     src = sources["latlong"]
     with pytest.raises(LayoutError, match="converts latlong maps of grid"):
@@ -849,10 +849,10 @@ def test_a_resampler_refuses_other_maps_and_does_not_cache_box_reductions(source
 @pytest.mark.parametrize("rows, faces, k, reduce_poles", [(32, 20, 3, False), (32, 21, 3, True), (64, 24, 3, True),
                                                           (16, 40, 2, True), (128, 17, 6, True)])
 def test_the_symmetric_cube_pass_equals_the_general_kernel(rows, faces, k, reduce_poles):
-    """Issue 9: one footprint read for up to 8 target pixels (quarter turns, mirror) gives what the general kernel
+    """one footprint read for up to 8 target pixels (quarter turns, mirror) gives what the general kernel
     computes pixel by pixel, to float32 rounding — odd and even faces, polar reductions, suns on the seam, near both
     poles and on the equator; the streamed strips too."""
-    from lightprobe.envmap.resampling import _plan, resample_strips
+    from lightprobe.maps.resampling.resampler import _plan, resample_strips
 
     rng = np.random.default_rng(rows + faces)
     data = rng.gamma(0.5, 1.0, size=(rows, 2 * rows, 3)).astype(np.float32)
@@ -871,7 +871,7 @@ def test_the_symmetric_cube_pass_equals_the_general_kernel(rows, faces, k, reduc
 
 
 def test_the_symmetric_cube_pass_is_not_taken_where_it_does_not_hold():
-    from lightprobe.envmap.resampling import _plan
+    from lightprobe.maps.resampling.resampler import _plan
 
     src = EnvMap(np.ones((16, 32, 3), np.float32), LATLONG)
     assert _plan(src, CUBE, 8, TURN, 3).cube_rows is None  # a turned environment
@@ -885,9 +885,9 @@ def test_the_symmetric_cube_pass_is_not_taken_where_it_does_not_hold():
 def test_a_cross_is_streamed_in_strips_equal_to_the_whole_map(target, source, rotation):
     """resample_strips into a cross computes each strip's rows from the faces' rows (its tiles are flipped faces):
     strips of a few rows that cut the tiles part-way give the whole map's image, empty tiles 0."""
-    from lightprobe.envmap.files import to_image
-    from lightprobe.envmap.resampling import resample_strips
-    from lightprobe.layouts import layout
+    from lightprobe.maps.files import to_image
+    from lightprobe.maps.resampling.resampler import resample_strips
+    from lightprobe.maps.layouts import layout
 
     cross = layout(target)
     assert cross.rows_are_face_rows()

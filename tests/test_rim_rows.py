@@ -1,18 +1,18 @@
-"""A mirror ball's (and an angular map's) rim pixels sampled round its rim direction (lightprobe.envmap.fused._rim_subsamples): where a pixel
+"""A mirror ball's (and an angular map's) rim pixels sampled round its rim direction (lightprobe.maps.resampling.fused._rim_subsamples): where a pixel
 reads from the rim direction out to ~20°, even cells in the image bunch at its inner edge, and a lat-long too large
-for the flux correction lost or gained up to 33–48 % of a one-pixel sun there (issue 9)."""
+for the flux correction lost or gained up to 33–48 % of a one-pixel sun there ."""
 
 import math
 
 import numpy as np
 import pytest
 
-from lightprobe.layouts import layout
+from lightprobe.maps.layouts import layout
 
 
 def _rim_call(row, col, n, source_rows, target="sphere"):
-    from lightprobe.envmap import fused
-    from lightprobe.envmap.resampling import _axes
+    from lightprobe.maps.resampling import fused
+    from lightprobe.maps.resampling.resampler import _axes
 
     rim = fused._rim_subsamples
     rim = getattr(rim, "lazy_dispatcher", lambda: rim)()  # compiled (a plain function until the first kernel is)
@@ -47,9 +47,9 @@ def test_a_large_balls_rim_pixel_fits_its_scratch(row, col):
 
 
 def _check_rim_pixel(row, col, n, source_rows):
-    from lightprobe.envmap import fused
+    from lightprobe.maps.resampling import fused
 
-    from lightprobe.envmap.resampling import _axes
+    from lightprobe.maps.resampling.resampler import _axes
 
     count, wsum, weights = _rim_call(row, col, n, source_rows)
     assert count <= 32 * 32 + 1
@@ -67,7 +67,7 @@ def _check_rim_pixel(row, col, n, source_rows):
 
 def test_only_pixels_by_the_rim_are_sampled_round_it():
     """Every pixel the rim crosses is sampled round the rim direction, and no pixel further in than the next ring."""
-    from lightprobe.envmap import fused
+    from lightprobe.maps.resampling import fused
 
     n = 64
     spans = [[fused._rim_span.py_func(fused.SPHERE, r, c, n, n) for c in range(n)] for r in range(n)]
@@ -84,10 +84,10 @@ def test_only_pixels_by_the_rim_are_sampled_round_it():
 @pytest.mark.parametrize("rows, ball", [(256, 128), (512, 256)])
 def test_a_large_lat_longs_sun_keeps_its_energy_to_a_mirror_balls_rim(rows, ball):
     """Every pixel of a lat-long into a mirror ball, as the sun, with no rim margin, before its flux correction:
-    the rim rows alone hold issue 9's 0.2 % (33 % and 48 % by the rim direction with even cells in the image; 1.5 %
+    the rim rows alone hold the 0.2 % bar (33 % and 48 % by the rim direction with even cells in the image; 1.5 %
     without the end term at the rim direction), so a 4k map, which is not corrected, gets them too. Corrected, every
     pixel is exact."""
-    from lightprobe.envmap import Resampler
+    from lightprobe.maps import Resampler
 
     src = layout("latlong")
     resampler = Resampler(src, src.grid_shape(rows), layout("sphere"), ball)
@@ -101,8 +101,8 @@ def test_a_large_balls_long_ring_pixels_are_sampled_round_the_rim_direction():
     more than twice what k_max cells reach at the pair's spacing, and are sampled round the rim direction too (their
     weights still sum to their area); from the rim inwards along the ball's middle row, a run of them, then the
     plain cells only."""
-    from lightprobe.envmap import fused
-    from lightprobe.envmap.resampling import _axes
+    from lightprobe.maps.resampling import fused
+    from lightprobe.maps.resampling.resampler import _axes
 
     n, source_rows = 512, 2048
     polar = [fused._rim_polar.py_func(fused.SPHERE, _axes(layout("sphere")), 256, col, n, n, np.eye(3),
@@ -126,9 +126,9 @@ def test_a_large_balls_long_ring_pixels_are_sampled_round_the_rim_direction():
 def test_a_lat_long_too_large_for_the_flux_correction_keeps_every_suns_energy_in_a_mirror_ball(rows, ball, bound):
     """Lat-longs over 2048×1024 are not flux-corrected (tests/test_limits.py: a 4k map's correction would hold more
     than convert may): every source pixel's delivery, by the kernels' own adjoint (resampling.delivered), no rim
-    margin, within issue 9's 0.2 %."""
-    from lightprobe.envmap import resampling as rs
-    from lightprobe.envmap.map import pixel_solid_angles
+    margin, within the 0.2 % bar."""
+    from lightprobe.maps.resampling import resampler as rs
+    from lightprobe.maps.envmap import pixel_solid_angles
 
     src, target = layout("latlong"), layout("sphere")
     grid, target_grid = src.grid_shape(rows), target.grid_shape(ball)
@@ -144,8 +144,8 @@ def test_a_lat_long_too_large_for_the_flux_correction_keeps_every_suns_energy_in
 def test_the_compiled_disc_area_is_the_layouts_one():
     """fused._quadrant_area (one point, any radius, compiled) equals layouts._quarter_disc_area (arrays, the unit
     disc) scaled by r², and a pixel's area from it is its area on the disc."""
-    from lightprobe.envmap import fused
-    from lightprobe.layouts import _quarter_disc_area
+    from lightprobe.maps.resampling import fused
+    from lightprobe.maps.layouts import _quarter_disc_area
 
     rng = np.random.default_rng(3)
     for x, y, r in zip(rng.uniform(-1.3, 1.3, 200), rng.uniform(-1.3, 1.3, 200), rng.uniform(0.2, 1.2, 200)):
@@ -162,7 +162,7 @@ def test_an_angular_maps_rim_pixels_rows_weigh_its_solid_angle(row, col):
     """On an angular map the rows weigh the pixel's share of each ring's image area times the ring's solid angle
     per area (its density π sin(πr)/r falls to 0 at the rim): the weights sum to the pixel's exact solid angle
     (the layout's); no end-term subsample there."""
-    from lightprobe.envmap import fused
+    from lightprobe.maps.resampling import fused
 
     n = 128
     count, wsum, weights = _rim_call(row, col, n, 256, "angular")
@@ -178,9 +178,9 @@ def test_an_angular_maps_rim_pixels_rows_weigh_its_solid_angle(row, col):
 @pytest.mark.parametrize("rows, size", [(256, 128), (512, 256)])
 def test_a_large_lat_longs_sun_keeps_its_energy_to_an_angular_maps_rim(rows, size):
     """Every pixel of a lat-long into an angular map, as the sun, with no rim margin, before its flux correction:
-    within issue 9's 0.2 % (0.46 % and 0.48 % at the rim direction with even cells in the image) — the rows must
+    within the 0.2 % bar (0.46 % and 0.48 % at the rim direction with even cells in the image) — the rows must
     not leave the correction much to do, and a 4k map is not corrected. Corrected, every pixel is exact."""
-    from lightprobe.envmap import Resampler
+    from lightprobe.maps import Resampler
 
     src = layout("latlong")
     resampler = Resampler(src, src.grid_shape(rows), layout("angular"), size)
@@ -195,7 +195,7 @@ def test_an_angular_maps_pixels_by_its_rim_direction_keep_a_suns_energy_at_its_d
     spans 1.25 source pixels (the default size's ratio: 4096×2048 → 3268, which is not corrected) and 0.85: the
     plain pixels just inside the ring the rim crosses take lookups fused.ANGULAR_RIM_SPACING·√ρ apart near the rim
     direction (0.4 apart they left its sun 0.27 % and 0.43 % over); every sun within 0.15 %."""
-    from lightprobe.envmap import Resampler
+    from lightprobe.maps import Resampler
 
     src = layout("latlong")
     resampler = Resampler(src, src.grid_shape(rows), layout("angular"), size)
@@ -208,7 +208,8 @@ def test_small_angular_maps_keep_a_suns_energy_before_their_flux_correction(monk
     """Sampled round the rim direction out to twice their least ρ, a 16-pixel angular map's second ring took a
     lat-long's sun 23 % off before the correction: only the pixels the rim crosses are (0.26–0.31 % here before,
     0.44–0.50 % with no margin for 32 and 64)."""
-    from lightprobe.envmap import Resampler, resampling
+    from lightprobe.maps import Resampler
+    from lightprobe.maps.resampling import resampler as resampling
 
     monkeypatch.setattr(resampling, "_flux_stencil", lambda *args, **kwargs: None)
     src = layout("latlong")

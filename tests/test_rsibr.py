@@ -1,4 +1,4 @@
-"""Reflection-space IBR (SPEC §4): warps, spherical barycentric weights, exactness at source views, accuracy."""
+"""Reflection-space IBR (docs/spec.md §4): warps, spherical barycentric weights, exactness at source views, accuracy."""
 
 from __future__ import annotations
 
@@ -7,13 +7,12 @@ import pytest
 
 from conftest import random_directions, shared
 from lightprobe import read_envmap
-from lightprobe.brdf import parse_brdf
-from lightprobe.errors import UsageError
-from lightprobe.radiance import geodesic_views, prepare, radiance_map, view_frame
-from lightprobe.radiance import sphere_normals
-from lightprobe.radiancefile import RadianceSet, radiance_set, read_radiance_set, write_radiance_set
-from lightprobe.rsibr import (blend_weights, g_mirror, g_mirror_inverse, g_normal, g_normal_inverse, reflected_by_view,
-                              synthesize)
+from lightprobe.glossy.brdf import parse_brdf
+from lightprobe.util.errors import UsageError
+from lightprobe.glossy.radiance import geodesic_views, prepare, radiance_map, view_frame
+from lightprobe.glossy.radiance import sphere_normals
+from lightprobe.glossy.radiancefile import RadianceSet, radiance_set, read_radiance_set, write_radiance_set
+from lightprobe.glossy.rsibr import blend_weights, g_mirror, g_mirror_inverse, g_normal, g_normal_inverse, reflected_by_view, synthesize
 
 
 def test_the_warps_and_their_inverses():
@@ -85,7 +84,7 @@ def smooth_set(sets):
 
 def test_summing_the_smooth_part_exactly_cuts_the_synthesis_error(sets, smooth_set):
     """The control variate of rsibr's docstring: 42 views, GGX α = 0.2, 32² — the paper's mirror warp 5.2 %, with
-    the smooth part summed exactly 1.4 % (measured on these 8 views; issue 11's goal is < 2 %). Without the smooth
+    the smooth part summed exactly 1.4 % (measured on these 8 views; the goal is < 2 %). Without the smooth
     cube, or with smooth=False, the synthesis is the paper's, bit for bit."""
     targets = random_directions(8, seed=23)
     paper = _error(sets, None, None, "mirror", targets, smooth_set, smooth=False)
@@ -155,8 +154,8 @@ def test_synthesis_needs_a_set_and_a_known_warp(sets):
 
 def test_the_command_synthesises_a_view(tmp_path, capsys):
     from lightprobe.cli import main
-    from lightprobe.io import write_image
-    from lightprobe.radiancefile import read_radiance_set
+    from lightprobe.maps.images import write_image
+    from lightprobe.glossy.radiancefile import read_radiance_set
 
     probe = tmp_path / "probe.exr"
     write_image(probe, np.ones((16, 32, 3), np.float32))

@@ -8,11 +8,10 @@ import numpy as np
 import pytest
 
 from conftest import random_directions, shared
-from lightprobe.envmap import EnvMap, box_reduce, read_envmap
-from lightprobe.frames import RH2001, rotation_from_ypr
-from lightprobe.layouts import LATLONG, LAYOUTS
-from lightprobe.sh import (SHCoeffs, _series, _recurrence_tables, a_hat, basis, delta_light, index, n_coeffs,
-                           normalisation, project, series, transform_matrix, window_weights)
+from lightprobe.maps import EnvMap, box_reduce, read_envmap
+from lightprobe.maps.frames import RH2001, rotation_from_ypr
+from lightprobe.maps.layouts import LATLONG, LAYOUTS
+from lightprobe.sh.basis import SHCoeffs, _series, _recurrence_tables, a_hat, basis, delta_light, index, n_coeffs, normalisation, project, series, transform_matrix, window_weights
 
 
 def test_basis_matches_the_paper_table():
@@ -126,10 +125,10 @@ def test_the_projection_takes_kernels_only_where_they_repay_loading_numba():
     import sys
 
     script = ("import sys, numpy as np, lightprobe as lp\n"
-              "from lightprobe.sh import project\n"
+              "from lightprobe.sh.basis import project\n"
               "env = lp.EnvMap(np.ones((512, 1024, 3), np.float32), lp.layout('latlong'))\n"
               "project(env, 2); print('numba' in sys.modules)\n"
-              "from lightprobe.jit import worth_compiling; print(worth_compiling(1 << 30))\n")
+              "from lightprobe.util.jit import worth_compiling; print(worth_compiling(1 << 30))\n")
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True).stdout.split()
     assert out == ["False", "True"]
 
@@ -137,7 +136,7 @@ def test_the_projection_takes_kernels_only_where_they_repay_loading_numba():
 def test_frame_change_to_rh2001_negates_odd_z():
     sh = SHCoeffs(np.random.default_rng(2).normal(size=(9, 3)))
     flipped = sh.to_frame(RH2001)
-    signs = np.array([1, 1, -1, 1, 1, -1, 1, -1, 1])  # L10, L2−1, L21 negated (SPEC §1)
+    signs = np.array([1, 1, -1, 1, 1, -1, 1, -1, 1])  # L10, L2−1, L21 negated (docs/spec.md §1)
     np.testing.assert_allclose(flipped.coeffs, sh.coeffs * signs[:, None], atol=1e-12)
     # the function itself is unchanged: same values at the same world directions
     d = random_directions(100)
@@ -149,7 +148,7 @@ def test_mirrors_negate_the_coefficients_odd_in_that_axis(mirror_axis):
     q = np.eye(3)
     q[mirror_axis, mirror_axis] = -1
     t = transform_matrix(2, q)
-    odd = {0: [3, 4, 7], 1: [1, 4, 5], 2: [2, 5, 7]}[mirror_axis]  # SPEC §1
+    odd = {0: [3, 4, 7], 1: [1, 4, 5], 2: [2, 5, 7]}[mirror_axis]  # docs/spec.md §1
     expected = np.ones(9)
     expected[odd] = -1
     np.testing.assert_allclose(t, np.diag(expected), atol=1e-12)

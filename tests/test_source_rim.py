@@ -1,4 +1,4 @@
-"""A disc source read round its rim direction (lightprobe.envmap.fused, SOURCE_RIM_MARK): an angular map or a mirror
+"""A disc source read round its rim direction (lightprobe.maps.resampling.fused, SOURCE_RIM_MARK): an angular map or a mirror
 ball spreads that one direction over its outer ring, and a target pixel by it reads an arc of the ring ~1/ε long.
 Such pixels are sampled in (ρ, α) round the source's rim direction; with the flux correction on every pixel of the
 source, a one-pixel sun anywhere keeps its energy — to the rim direction, which was left alone within 20° and came out
@@ -11,11 +11,11 @@ import math
 import numpy as np
 import pytest
 
-from lightprobe.envmap import EnvMap, Resampler, resample
-from lightprobe.envmap import fused
-from lightprobe.envmap.map import pixel_directions, pixel_solid_angles
-from lightprobe.frames import rotation_from_ypr
-from lightprobe.layouts import layout
+from lightprobe.maps import EnvMap, Resampler, resample
+from lightprobe.maps.resampling import fused
+from lightprobe.maps.envmap import pixel_directions, pixel_solid_angles
+from lightprobe.maps.frames import rotation_from_ypr
+from lightprobe.maps.layouts import layout
 
 TURNED = rotation_from_ypr(-40, 25, 5)
 

@@ -19,8 +19,8 @@ import pytest
 
 from conftest import shared
 from lightprobe.cli import main
-from lightprobe.envmap import EnvMap, read_envmap
-from lightprobe.layouts import Sphere
+from lightprobe.maps import EnvMap, read_envmap
+from lightprobe.maps.layouts import Sphere
 from lightprobe.viewer.bake import BakeOptions, bake, cache_folder, read_manifest
 from lightprobe.viewer.server import ViewServer, safe_file
 
@@ -51,7 +51,7 @@ def baked(inputs, cache):
 
 @pytest.fixture(scope="module")
 def page(baked):
-    from lightprobe.viewer.page import ViewerPage
+    from lightprobe_engines.viewer_page import ViewerPage
 
     with ViewerPage(baked[0]) as p:
         yield p
@@ -117,8 +117,8 @@ def test_environment_rotation_turns_every_method_alike(page):
 
 
 def test_gpu_synthesised_radiance_map_equals_radiance_synthesize(page, baked, tmp_path):
-    from lightprobe.brdf import parse_brdf
-    from lightprobe.radiancefile import RadianceSet, write_radiance_set
+    from lightprobe.glossy.brdf import parse_brdf
+    from lightprobe.glossy.radiancefile import RadianceSet, write_radiance_set
 
     folder, doc = baked
     part = doc["brdfs"][0]
@@ -152,7 +152,7 @@ def test_glossy_methods_in_webgl_equal_the_python_renderer(page, scene, name, op
     """The bunny in gold alone (no ground): the page's method against lightprobe.render's of the same name."""
     from dataclasses import replace
 
-    from lightprobe.brdf import parse_brdf
+    from lightprobe.glossy.brdf import parse_brdf
     from lightprobe.render.methods import method
     from lightprobe.render.renderer import render
     from lightprobe.render.scene import Material

@@ -19,9 +19,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import LightprobeError
+from lightprobe.util.errors import LightprobeError
 
-ENGINES = Path(os.environ.get("LIGHTPROBE_ENGINES", Path(__file__).resolve().parents[2] / "engines"))
+# This package lives in the repository's engines/ folder, beside the npm packages it runs (never in a wheel).
+ENGINES = Path(os.environ.get("LIGHTPROBE_ENGINES", Path(__file__).resolve().parents[1]))
 CHROMIUM = "/usr/bin/chromium"
 # SwiftShader for WebGL2; no sandbox (root in CI); none of Chromium's own network traffic, which this machine's closed
 # network refuses

@@ -12,9 +12,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..engines import launch_chromium, require_engines
-from ..errors import LightprobeError
-from .server import ViewServer
+from lightprobe.util.errors import LightprobeError
+from lightprobe.viewer.server import ViewServer
+
+from .runtimes import launch_chromium, require_engines
 
 def _image(answer: dict) -> np.ndarray:
     data = np.frombuffer(base64.b64decode(answer["rgba"]), dtype="<f4")

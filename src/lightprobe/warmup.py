@@ -22,8 +22,8 @@ import numpy as np
 
 def _probe():
     """A 32×16 lat-long sky with a small bright sun: enough for lights to be found and every path to run."""
-    from .envmap import EnvMap
-    from .layouts import LATLONG
+    from .maps import EnvMap
+    from .maps.layouts import LATLONG
 
     data = np.full((16, 32, 3), 0.5, np.float32)
     data[4, 10] = 400.0
@@ -31,10 +31,10 @@ def _probe():
 
 
 def _maps(env) -> None:
-    from .envmap import Resampler
-    from .irradiance import brute_irradiance, irradiance_map
-    from .layouts import LAYOUTS, LATLONG
-    from .sh import project
+    from .maps import Resampler
+    from .sh.irradiance import brute_irradiance, irradiance_map
+    from .maps.layouts import LAYOUTS, LATLONG
+    from .sh.basis import project
 
     for source in LAYOUTS:  # probes come in every layout, and go to every other
         mapped = env.to(source, 8)
@@ -51,9 +51,9 @@ def _maps(env) -> None:
 
 
 def _lights(env) -> None:
-    from .baselines import median_cut, variance_minimisation
-    from .hybrid import hybrid_irradiance
-    from .lights import decompose
+    from .lights.baselines import median_cut, variance_minimisation
+    from .lights.hybrid import hybrid_irradiance
+    from .lights.decompose import decompose
 
     dec = decompose(env)
     hybrid_irradiance(env, dec).evaluate(np.array([[0.0, 1.0, 0.0], [0.0, -1.0, 0.0]]))
@@ -62,7 +62,7 @@ def _lights(env) -> None:
 
 
 def _renders(env) -> None:
-    from .brdf import parse_brdf
+    from .glossy.brdf import parse_brdf
     from .render.methods import method
     from .render.raycast import Tracer
     from .render.renderer import render
@@ -88,10 +88,10 @@ def _renders(env) -> None:
 
 
 def _radiance(env) -> None:
-    from .brdf import parse_brdf
-    from .radiance import geodesic_views, prepare, radiance_map
-    from .radiancefile import radiance_set
-    from .rsibr import synthesize
+    from .glossy.brdf import parse_brdf
+    from .glossy.radiance import geodesic_views, prepare, radiance_map
+    from .glossy.radiancefile import radiance_set
+    from .glossy.rsibr import synthesize
 
     lighting = prepare(env)
     for spec in ("ggx:alpha=0.3,conductor=gold", "lambert"):
@@ -140,7 +140,21 @@ def main() -> int:
     seconds = compile_kernels(lambda step: print(f"lightprobe: compiling kernels ({step})", file=sys.stderr,
                                                  flush=True))
     print(f"lightprobe: kernels compiled (or loaded from numba's cache) in {seconds:.1f} s", file=sys.stderr)
+    mark_warm()
     return 0
+
+
+WARM = ".lightprobe-warm"  # in numba's cache folder: every kernel compiled into it (setup.sh compiles only without it)
+
+
+def mark_warm() -> None:
+    """Mark this source state's numba cache folder as complete (``setup.sh`` then skips the warm-up)."""
+    import os
+
+    folder = os.environ.get("NUMBA_CACHE_DIR")
+    if folder and os.path.isdir(folder):
+        with open(os.path.join(folder, WARM), "w", encoding="utf-8") as marker:
+            marker.write("every kernel of `python -m lightprobe.warmup` is in this folder\n")
 
 
 if __name__ == "__main__":

@@ -7,7 +7,7 @@ import glob
 import os
 from pathlib import Path
 
-from ..errors import UsageError
+from ..util.errors import UsageError
 
 LIST_SUFFIXES = (".txt", ".lst", ".list")
 MAX_INPUTS = 10_000_000
@@ -15,7 +15,7 @@ MAX_LIST_BYTES = 1 << 30  # a list of inputs: 10⁷ paths of 100 characters
 
 
 def _from_list(path: Path) -> list[str]:
-    from ..io import check_regular_file
+    from ..maps.images import check_regular_file
 
     check_regular_file(path, "the list of inputs")  # /dev/zero or a FIFO would never end
     if path.stat().st_size > MAX_LIST_BYTES:

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import UsageError
+from ..util.errors import UsageError
 
 MAX_THUMBNAILS = 500
 LUMA = np.array([0.2126, 0.7152, 0.0722])
@@ -67,7 +67,7 @@ solid #ccc;padding:2px 6px;text-align:left}}</style></head><body>
 <h2>Thumbnails</h2>{thumbs or "<p>no thumbnail job</p>"}
 <h2>Failures</h2>{"<table><tr><th>path</th><th>error</th><th>message</th></tr>" + failures + "</table>" if failures else "<p>none</p>"}
 </body></html>"""
-    from ..files import write_text
+    from ..util.files import write_text
 
     write_text(out / "report.html", page)
     return out / "report.html"

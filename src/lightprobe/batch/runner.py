@@ -20,7 +20,7 @@ from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import UsageError
+from ..util.errors import UsageError
 from .table import Parts, consolidate, done_keys, manifest, read_manifest, write_manifest
 from .task import JobOptions, process
 
@@ -251,7 +251,7 @@ def check_out(out: Path, options: JobOptions, resume: bool, force: bool) -> None
 def _sweep(out: Path) -> None:
     """Remove what a killed driver left half-written: consolidated tables being written (``.NAME.tmp-PID`` of a
     process no longer alive). Parts and artifacts sweep their own folders."""
-    from ..files import process_alive
+    from ..util.files import process_alive
 
     for stale in out.glob(".*.parquet.tmp-*"):
         pid = stale.name.rsplit("-", 1)[-1]
@@ -262,11 +262,11 @@ def _sweep(out: Path) -> None:
 def _sweep_artifacts(out: Path) -> None:
     """Remove the temporary files of workers killed mid-write (their artifact was redone and renamed into place
     by another worker, or will be by the next run)."""
-    from ..files import sweep_stale_temporaries
+    from ..util.files import sweep_stale_temporaries
 
     import shutil
 
-    from ..files import process_alive
+    from ..util.files import process_alive
 
     maps = out / "maps"
     if not maps.is_dir():

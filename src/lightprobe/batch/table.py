@@ -28,7 +28,7 @@ import re
 import secrets
 from pathlib import Path
 
-from ..errors import UsageError
+from ..util.errors import UsageError
 
 FORMAT, VERSION, SCHEMA_VERSION = "lightprobe.batch", 1, 1
 PART_NAME = re.compile(r"(rows|errors)-(\d{6,})-([0-9a-f]{8})\.parquet")  # what Parts.commit names a part
@@ -96,7 +96,7 @@ def read_manifest(out: Path) -> dict | None:
 
 
 def write_manifest(out: Path, doc: dict) -> None:
-    from ..files import write_text
+    from ..util.files import write_text
 
     write_text(out / "batch.json", json.dumps(doc, indent=1) + "\n")
 

@@ -43,7 +43,7 @@ class JobOptions:
 
 def file_digest(path: Path) -> tuple[str, int]:
     """sha256 (hex) and size of a file."""
-    from ..files import digest_file
+    from ..util.files import digest_file
 
     h = hashlib.sha256()
     size = digest_file(path, h)
@@ -56,7 +56,7 @@ def artifact_folder(out: Path, digest: str) -> Path:
 
 def _limit_threads() -> None:
     """One compiled-kernel thread per worker: the pool, not numba, spreads the work over the cores
-    (:func:`lightprobe.jit.use_threads` reads it as the kernels load)."""
+    (:func:`lightprobe.util.jit.use_threads` reads it as the kernels load)."""
     os.environ["LIGHTPROBE_THREADS"] = "1"
 
 
@@ -84,7 +84,7 @@ def process(path: str, options: JobOptions, out: str, skip: frozenset = frozense
     except MemoryError:
         return {**base, "kind": "error", "error_class": "MemoryError", "message": "out of memory"}
     except Exception as e:  # noqa: BLE001 - whatever a hostile file provokes is that file's error, not the batch's
-        from ..errors import LightprobeError
+        from ..util.errors import LightprobeError
 
         text = " ".join(str(e).split())[:500] or type(e).__name__
         if not isinstance(e, LightprobeError):
@@ -97,8 +97,8 @@ def process(path: str, options: JobOptions, out: str, skip: frozenset = frozense
 
 def _row(path: Path, digest: str, options: JobOptions, out: Path) -> dict:
     from .. import __version__
-    from ..envmap.files import read_envmap_within_budget
-    from ..io import image_header
+    from ..maps.files import read_envmap_within_budget
+    from ..maps.images import image_header
 
     timings = {}
     t = time.perf_counter()
@@ -119,7 +119,7 @@ def _row(path: Path, digest: str, options: JobOptions, out: Path) -> dict:
     return row
 
 
-# The SH projection takes numba or numpy by what the process has loaded (lightprobe.jit.worth_compiling), and the
+# The SH projection takes numba or numpy by what the process has loaded (lightprobe.util.jit.worth_compiling), and the
 # two agree to the last bits only. A fresh `lightprobe sh` or `irradiance` has not loaded numba when it projects
 # (the choice is by the map's size alone); `lights` and `radiance` have, through their own kernels, before theirs.
 FRESH_COMPILE_POLICY = {"sh": "by-work", "irradiance": "by-work"}
@@ -133,7 +133,7 @@ def _as_a_fresh_command(job: str) -> None:
 
 
 def _sh(env, path, options, folder, out, row) -> None:
-    from ..sh import project
+    from ..sh.basis import project
 
     sh = project(env, options.order, "world").windowed("none")  # lightprobe sh FILE --order N (defaults)
     row["sh"] = [float(v) for v in sh.coeffs.reshape(-1)]
@@ -141,11 +141,11 @@ def _sh(env, path, options, folder, out, row) -> None:
 
 
 def _lights(env, path, options, folder, out, row) -> None:
-    from ..files import write_text
-    from ..hybrid import DEFAULT_AMBIENT_ORDER
-    from ..lights import LightParams, decompose
-    from ..lightsfile import lights_json
-    from ..sh import project
+    from ..util.files import write_text
+    from ..lights.hybrid import DEFAULT_AMBIENT_ORDER
+    from ..lights.decompose import LightParams, decompose
+    from ..lights.lightsfile import lights_json
+    from ..sh.basis import project
 
     params = LightParams()  # lightprobe lights FILE -o X (defaults)
     params.check()
@@ -162,8 +162,8 @@ def _lights(env, path, options, folder, out, row) -> None:
 
 
 def _irradiance(env, path, options, folder, out, row) -> None:
-    from ..irradiance import irradiance_map
-    from ..layouts import LATLONG
+    from ..sh.irradiance import irradiance_map
+    from ..maps.layouts import LATLONG
 
     folder.mkdir(parents=True, exist_ok=True)
     # lightprobe irradiance FILE -o X.exr --order N (latlong 64×32, SH, no window)
@@ -173,9 +173,9 @@ def _irradiance(env, path, options, folder, out, row) -> None:
 
 
 def _radiance(env, path, options, folder, out, row) -> None:
-    from ..brdf import parse_brdf
-    from ..radiance import geodesic_views, prepare
-    from ..radiancefile import radiance_set, write_radiance_set
+    from ..glossy.brdf import parse_brdf
+    from ..glossy.radiance import geodesic_views, prepare
+    from ..glossy.radiancefile import radiance_set, write_radiance_set
 
     brdf = parse_brdf(options.brdf)  # lightprobe radiance FILE --brdf B --views V --size S -o DIR
     rset = radiance_set(prepare(env), brdf, *geodesic_views(options.radiance_views), options.radiance_size)
@@ -185,9 +185,9 @@ def _radiance(env, path, options, folder, out, row) -> None:
 
 
 def _thumbnail(env, path, options, folder, out, row) -> None:
-    from ..io import write_image
-    from ..layouts import LATLONG
-    from ..tonemap import auto_exposure
+    from ..maps.images import write_image
+    from ..maps.layouts import LATLONG
+    from ..maps.tonemap import auto_exposure
 
     small = env.to(LATLONG, THUMBNAIL_SIZE)
     folder.mkdir(parents=True, exist_ok=True)

@@ -20,7 +20,7 @@ import signal
 import sys
 import warnings
 
-from ..errors import LightprobeError
+from ..util.errors import LightprobeError
 from .common import Parser
 
 # The commands, each a module of this package named as the command.
@@ -65,7 +65,7 @@ def _one_line_warnings():
     shown: set[str] = set()
 
     def show(message, category, filename, lineno, file=None, line=None) -> None:
-        from ..errors import LightprobeWarning
+        from ..util.errors import LightprobeWarning
 
         text = " ".join(str(message).split())[:500]
         if issubclass(category, LightprobeWarning) and text not in shown:
@@ -75,21 +75,40 @@ def _one_line_warnings():
     return show
 
 
+# The optional parts of lightprobe, by the module a command found missing: the extra that installs it.
+EXTRAS = {"trimesh": "render", "embreex": "render", "yaml": "render", "flip_evaluator": "render",
+          "mitsuba": "reference", "drjit": "reference", "pyarrow": "batch", "distributed": "batch", "dask": "batch"}
+VIEWER_MODULES = ("trimesh",)  # what `lightprobe view` needs of them: the viewer extra has it
+
+
+def missing_extra(error: ModuleNotFoundError, command: str | None) -> str | None:
+    """The one-line message for a command that needs an extra this installation lacks, or None when ``error`` is
+    not about an optional part (a real bug: it is raised as is)."""
+    top = (error.name or "").split(".")[0]
+    extra = EXTRAS.get(top)
+    if extra is None:
+        return None
+    if command == "view" and top in VIEWER_MODULES:
+        extra = "viewer"
+    return (f"'lightprobe {command or ''}' needs the optional {top!r} package: "
+            f"pip install 'lightprobe[{extra}]'").replace("lightprobe '", "lightprobe'")
+
+
 def _error(message: str) -> None:
     print(f"lightprobe: error: {' '.join(str(message).split())[:1000]}", file=sys.stderr)
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status (0 ok, 2 bad input or usage, 128 + N after signal N)."""
-    from ..files import Terminated, raise_on_termination
+    from ..util.files import Terminated, raise_on_termination
 
-    from ..jit import lean
+    from ..util.jit import lean
 
     warnings.showwarning = _one_line_warnings()
     raise_on_termination()
     lean()  # numba, if a kernel runs, without scipy's BLAS: only lightprobe's kernels run here
     try:
-        from ..limits import threads
+        from ..util.limits import threads
 
         threads()  # a malformed LIGHTPROBE_THREADS is one line now, whether or not a kernel runs later
         parser = build_parser(_named_command(argv))
@@ -104,6 +123,12 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         _error("interrupted")
         return 130
+    except ModuleNotFoundError as e:
+        message = missing_extra(e, _named_command(argv))
+        if message is None:
+            raise
+        _error(message)
+        return 2
     except Terminated as e:
         _error(f"stopped by {signal.Signals(e.signum).name}; no partial output was left")
         return 128 + e.signum

@@ -60,8 +60,8 @@ def run(args) -> None:
     if bad or not jobs:
         refuse(f"--jobs: unknown {', '.join(bad) or '(none given)'}; choose from {', '.join(JOBS)}")
     if "radiance" in jobs:
-        from ..brdf import parse_brdf
-        from ..radiance import check_views
+        from ..glossy.brdf import parse_brdf
+        from ..glossy.radiance import check_views
 
         parse_brdf(args.brdf)
         check_views(args.views)
@@ -85,7 +85,7 @@ def run(args) -> None:
 def _with_progress(work, total: int):
     """Run ``work(progress)`` with a progress bar on stderr when it is a terminal: maps done / total, maps/s, ETA,
     failures so far."""
-    from ..progress import progress_enabled
+    from ..util.progress import progress_enabled
 
     if not progress_enabled():
         return work(None)

@@ -9,7 +9,7 @@ import math
 import sys
 from pathlib import Path
 
-from ..errors import LightprobeError, UsageError
+from ..util.errors import LightprobeError, UsageError
 
 
 
@@ -122,7 +122,7 @@ def add_option(p: argparse.ArgumentParser, *flags: str, type, help: str, **kwarg
 
 # ---- probes -------------------------------------------------------------------------------------------------------
 def layout_names() -> list[str]:
-    from ..names import LAYOUTS
+    from ..util.names import LAYOUTS
 
     return list(LAYOUTS)
 
@@ -148,7 +148,7 @@ def load(path: Path | None, layout: str | None, fix: bool = True, working_bytes_
     """Read a probe (the shipped one when ``path`` is None) after checking that reading it plus
     ``working_bytes_per_pixel`` per pixel plus ``extra_bytes`` fits the memory budget (with numba's own memory
     when the command runs compiled ``kernels``)."""
-    from ..envmap.files import read_envmap_within_budget
+    from ..maps.files import read_envmap_within_budget
 
     return read_envmap_within_budget(probe_path(path), layout, fix=fix, extra_bytes=extra_bytes, what=what,
                                      working_bytes_per_pixel=working_bytes_per_pixel, kernels=kernels)
@@ -171,7 +171,7 @@ def print_json(value) -> None:
 
 
 def write_text(path: Path, text: str, inputs=()) -> None:
-    from ..files import write_text as write
+    from ..util.files import write_text as write
 
     write(path, text, inputs)
 

@@ -23,12 +23,12 @@ def register(sub) -> None:
 
 
 def run(args) -> None:
-    from ..envmap import repair
-    from ..files import check_output
-    from ..io import image_header, read_image, write_image
-    from ..limits import check_memory
+    from ..maps import repair
+    from ..util.files import check_output
+    from ..maps.images import image_header, read_image, write_image
+    from ..util.limits import check_memory
     from ..render.compare import compare, error_heatmap, hdr_flip
-    from ..tonemap import heatmap
+    from ..maps.tonemap import heatmap
 
     inputs = [args.test, args.reference]
     for out in (args.heatmap, args.flipmap):

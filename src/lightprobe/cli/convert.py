@@ -11,7 +11,7 @@ HDR_WRITE_BYTES = 32 << 20  # .exr/.hdr/.pfm are written in strips as they are c
 
 
 def register(sub) -> None:
-    from ..names import CURVES
+    from ..util.names import CURVES
 
     p = sub.add_parser("convert", help="convert between layouts (and rotate)",
                        description="Convert between layouts with footprint-aware resampling (∫L dω conserved), "
@@ -32,11 +32,11 @@ def register(sub) -> None:
 
 
 def run(args) -> None:
-    from ..envmap import check_size, resample, resample_memory, resample_strips
-    from ..files import check_output
-    from ..frames import as_rotation
-    from ..io import HDR_WRITE_FORMATS, WRITE_FORMATS, image_header, write_image_strips
-    from ..layouts import layout as layout_named
+    from ..maps import check_size, resample, resample_memory, resample_strips
+    from ..util.files import check_output
+    from ..maps.frames import as_rotation
+    from ..maps.images import HDR_WRITE_FORMATS, WRITE_FORMATS, image_header, write_image_strips
+    from ..maps.layouts import layout as layout_named
 
     if args.dst.suffix.lower() not in WRITE_FORMATS:
         refuse(f"cannot write {args.dst}: unknown image format; use one of {', '.join(WRITE_FORMATS)}")
@@ -65,8 +65,8 @@ def run(args) -> None:
 def _detected(header):
     """The source's layout as its aspect ratio says, for the memory estimate (None where it cannot tell: the read
     that follows says why)."""
-    from ..errors import LayoutError
-    from ..layouts import detect_layout
+    from ..util.errors import LayoutError
+    from ..maps.layouts import detect_layout
 
     try:
         return detect_layout(header.width, header.height)
@@ -76,12 +76,12 @@ def _detected(header):
 
 def _link_kernels(source, source_pixels: int, target, size: int, rotation, streamed: bool) -> None:
     """Link the conversion's compiled kernels on a small map that takes its route before the map itself is read
-    (:func:`lightprobe.envmap.link_kernels`), then let LLVM's pages go (:func:`lightprobe.jit.release_compiler_pages`):
+    (:func:`lightprobe.maps.link_kernels`), then let LLVM's pages go (:func:`lightprobe.util.jit.release_compiler_pages`):
     they would otherwise stay resident beside the map through the conversion — 4k lat-long → cube: 321 → 257 MiB at
     the peak, 3.35 → 2.68× the map. A path the small map does not take links its kernel later, reading back only the
     pages it needs."""
-    from ..envmap import link_kernels
-    from ..jit import release_compiler_pages
+    from ..maps import link_kernels
+    from ..util.jit import release_compiler_pages
 
     if source is None:  # the read that follows says why
         return

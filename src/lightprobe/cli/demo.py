@@ -21,7 +21,7 @@ def register(sub) -> None:
 
 
 def run(args) -> None:
-    from ..demo import check_report_folder, run_demo
+    from ..report.demo import check_report_folder, run_demo
 
     check_report_folder(args.out, args.force)
     env = load(args.probe, args.layout, working_bytes_per_pixel=400, kernels=True)

@@ -24,11 +24,11 @@ def register(sub) -> None:
 
 
 def run(args) -> None:
-    from ..design import design_figure, edit
-    from ..files import check_output
-    from ..io import write_image
-    from ..sh import project
-    from ..shfile import sh_json
+    from ..sh.design import design_figure, edit
+    from ..util.files import check_output
+    from ..maps.images import write_image
+    from ..sh.basis import project
+    from ..sh.shfile import sh_json
 
     inputs = [args.file] if args.file else []
     check_output(args.output, inputs)

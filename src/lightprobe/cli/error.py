@@ -1,4 +1,4 @@
-"""``lightprobe error``: SH irradiance against brute force, both measures of SPEC §3."""
+"""``lightprobe error``: SH irradiance against brute force, both measures of docs/spec.md §3."""
 
 from __future__ import annotations
 
@@ -9,10 +9,10 @@ WORKING_BYTES_PER_PIXEL = 96  # the brute-force light samples and the SH project
 
 
 def register(sub) -> None:
-    from ..names import WINDOWS
+    from ..util.names import WINDOWS
 
     p = sub.add_parser("error", help="SH irradiance error against brute force",
-                       description="Both error measures of SPEC 3 on luminance over uniformly spread normals (SH or "
+                       description="Both error measures of docs/spec.md §3 on luminance over uniformly spread normals (SH or "
                                    "the hybrid against brute force): the "
                                    "paper's |E - E_ref| / (integral of L) and the per-normal |E - E_ref| / E_ref.")
     add_probe(p)
@@ -31,14 +31,14 @@ def register(sub) -> None:
 def run(args) -> None:
     from dataclasses import asdict
 
-    from ..irradiance import brute_irradiance, error_report, reference_normals
-    from ..sh import WINDOWS, project
+    from ..sh.irradiance import brute_irradiance, error_report, reference_normals
+    from ..sh.basis import WINDOWS, project
 
     hybrid = args.method == "hybrid"
     if args.order is not None:
         orders = args.order
     else:
-        from ..hybrid import DEFAULT_AMBIENT_ORDER
+        from ..lights.hybrid import DEFAULT_AMBIENT_ORDER
 
         orders = [2, DEFAULT_AMBIENT_ORDER] if hybrid else [2]
     env = load(args.file, args.layout, working_bytes_per_pixel=WORKING_BYTES_PER_PIXEL, kernels=True)
@@ -48,8 +48,8 @@ def run(args) -> None:
     windows = WINDOWS if args.window == "all" and not hybrid else ("none",) if hybrid else (args.window,)
     reports = [error_report(env, o, w, normals, reference, sh) for o in orders for w in windows]
     if hybrid:
-        from ..hybrid import hybrid_error_report, hybrid_irradiance
-        from ..lights import decompose
+        from ..lights.hybrid import hybrid_error_report, hybrid_irradiance
+        from ..lights.decompose import decompose
 
         dec = decompose(env)
         reports += [hybrid_error_report(env, normals, reference, hybrid_irradiance(env, dec, o)) for o in orders]

@@ -11,7 +11,7 @@ CONTAINERS = ("babylon-env",)
 
 
 def register(sub) -> None:
-    from ..names import EXPORT_TARGETS as TARGETS, FRAMES, GLTF_SCALINGS, WINDOWS
+    from ..util.names import EXPORT_TARGETS as TARGETS, FRAMES, GLTF_SCALINGS, WINDOWS
 
     p = sub.add_parser("export", help="lighting for engines (three.js, Filament, Unity, glTF, Babylon, GLSL)",
                        description="Nine SH coefficients converted to an engine's frame, sign convention and "
@@ -36,7 +36,7 @@ def register(sub) -> None:
 
 
 def run(args) -> None:
-    from ..files import check_output
+    from ..util.files import check_output
 
     inputs = [p for p in (args.file, args.sh, args.lights) if p is not None]
     if args.lights is not None:
@@ -57,7 +57,7 @@ def run(args) -> None:
     if container:
         write_container(args, env, sh, inputs)
         return
-    from ..export import export
+    from ..exports.sh import export
 
     text = export(sh, args.to, args.frame, args.gltf_scaling, csharp=args.output.suffix.lower() == ".cs")
     write_text(args.output, text, inputs)
@@ -65,11 +65,11 @@ def run(args) -> None:
 
 
 def export_lights_file(args, inputs) -> None:
-    from ..files import check_output
-    from ..io import check_regular_file
-    from ..lightexport import export_lights
-    from ..lightsfile import MAX_BYTES, read_lights_json
-    from ..names import LIGHT_EXPORT_TARGETS
+    from ..util.files import check_output
+    from ..maps.images import check_regular_file
+    from ..exports.lights import export_lights
+    from ..lights.lightsfile import MAX_BYTES, read_lights_json
+    from ..util.names import LIGHT_EXPORT_TARGETS
 
     if args.file is not None or args.sh is not None:
         refuse("--lights carries its own ambient: give no map and no --sh")
@@ -84,9 +84,9 @@ def export_lights_file(args, inputs) -> None:
     check_regular_file(args.lights, "lights file")
     lights = read_lights_json(args.lights.read_bytes()[: MAX_BYTES + 1], str(args.lights))
     if gltf:
-        from ..containers import glb, gltf_embedded
-        from ..files import write_bytes
-        from ..lightexport import gltf_lights
+        from ..exports.containers import glb, gltf_embedded
+        from ..util.files import write_bytes
+        from ..exports.lights import gltf_lights
 
         document, images = gltf_lights(lights)
         if args.output.suffix.lower() == ".glb":
@@ -99,8 +99,8 @@ def export_lights_file(args, inputs) -> None:
 
 
 def read_sh(path: Path):
-    from ..io import check_regular_file
-    from ..shfile import read_sh_json
+    from ..maps.images import check_regular_file
+    from ..sh.shfile import read_sh_json
 
     check_regular_file(path, "SH file")
     sh = read_sh_json(path.read_bytes()[: 8 << 20], str(path))
@@ -110,12 +110,12 @@ def read_sh(path: Path):
 
 
 def map_and_sh(args):
-    from ..sh import project
+    from ..sh.basis import project
 
     extra = 0
     if args.to in CONTAINERS or args.to == "gltf":
-        from ..containers import check_specular_size
-        from ..prefilter import prefilter_memory
+        from ..exports.containers import check_specular_size
+        from ..glossy.prefilter import prefilter_memory
 
         extra = prefilter_memory(check_specular_size(args.specular_size))
     env = load(args.file, args.layout, working_bytes_per_pixel=64, extra_bytes=extra)
@@ -123,9 +123,9 @@ def map_and_sh(args):
 
 
 def write_container(args, env, sh, inputs) -> None:
-    from ..containers import babylon_env, glb, gltf_embedded, gltf_ibl
-    from ..files import write_bytes
-    from ..frames import BABYLON, frame
+    from ..exports.containers import babylon_env, glb, gltf_embedded, gltf_ibl
+    from ..util.files import write_bytes
+    from ..maps.frames import BABYLON, frame
 
     f = frame(args.frame) if args.frame else BABYLON
     if args.to == "babylon-env":

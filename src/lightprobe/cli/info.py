@@ -26,7 +26,7 @@ def run(args) -> None:
     if args.json:
         print_json(stats)
         return
-    # a plain aligned table, not rich's: importing rich costs more than reading a 2k map (issue 9's start-up)
+    # a plain aligned table, not rich's: importing rich costs more than reading a 2k map (the start-up bound: 3× `import numpy`)
     title = stats.pop("file")
     width = max(map(len, stats))
     print(title)

@@ -12,7 +12,7 @@ INPUT_WORKING_BYTES_PER_PIXEL = 64  # brute force: the map's weighted light samp
 
 
 def register(sub) -> None:
-    from ..names import WINDOWS
+    from ..util.names import WINDOWS
 
     p = sub.add_parser("irradiance", help="irradiance map (SH or brute force)",
                        description="Irradiance E (not divided by pi) for every texel direction taken as a surface "
@@ -46,10 +46,10 @@ def layout_size(size: tuple[int, int | None], layout) -> int:
 
 
 def run(args) -> None:
-    from ..envmap import check_size
-    from ..files import check_output
-    from ..irradiance import irradiance_map
-    from ..layouts import layout as layout_named
+    from ..maps import check_size
+    from ..util.files import check_output
+    from ..sh.irradiance import irradiance_map
+    from ..maps.layouts import layout as layout_named
 
     check_output(args.output, [args.file])
     lay = layout_named(args.out_layout)
@@ -58,7 +58,7 @@ def run(args) -> None:
     env = load(args.file, args.layout, working_bytes_per_pixel=INPUT_WORKING_BYTES_PER_PIXEL,
                extra_bytes=pixels * OUTPUT_BYTES_PER_PIXEL)
     if args.method == "hybrid":
-        from ..hybrid import DEFAULT_AMBIENT_ORDER, hybrid_irradiance_map
+        from ..lights.hybrid import DEFAULT_AMBIENT_ORDER, hybrid_irradiance_map
 
         out = hybrid_irradiance_map(env, lay, size, DEFAULT_AMBIENT_ORDER if args.order is None else args.order)
     else:

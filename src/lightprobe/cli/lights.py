@@ -14,10 +14,10 @@ WORKING_BYTES_PER_PIXEL = 80  # the ambient copy, directions and solid angles of
 def register(sub) -> None:
     p = sub.add_parser("lights", help="area lights + ambient map (Arbree, Walter & Bala 2005)",
                        description="Find the map's bright regions as circular area lights by the paper's "
-                                   "centre-surround filter (SPEC §5; every parameter below defaults to the "
-                                   "paper's), and write them as JSON (format lightprobe.lights, version 1: "
+                                   "centre-surround filter (docs/spec.md §5; every parameter below defaults to the "
+                                   "paper's), and write them as JSON (format lightprobe.lights.decompose, version 1: "
                                    "world-frame directions, radii, RGB powers, the ambient's radiance SH).")
-    from ..names import LIGHT_METHODS
+    from ..util.names import LIGHT_METHODS
 
     add_probe(p)
     p.add_argument("--output", "-o", type=Path, required=True, help="the lights JSON")
@@ -49,11 +49,11 @@ def register(sub) -> None:
 
 
 def run(args) -> None:
-    from ..files import check_output
-    from ..io import write_image
-    from ..lights import LightParams, decompose, preview
-    from ..lightsfile import lights_json
-    from ..sh import project
+    from ..util.files import check_output
+    from ..maps.images import write_image
+    from ..lights.decompose import LightParams, decompose, preview
+    from ..lights.lightsfile import lights_json
+    from ..sh.basis import project
 
     inputs = [args.file] if args.file else []
     params = LightParams(inner_ratio=args.inner_ratio, surround_weight=args.surround_weight, sizes=args.sizes,
@@ -61,7 +61,7 @@ def run(args) -> None:
                          candidate_fraction=args.candidates, stop_fraction=args.stop)
     params.check()
     if args.method in POINT_METHODS:
-        from ..baselines import check_count
+        from ..lights.baselines import check_count
 
         check_count(args.count)
         if args.ambient is not None:
@@ -87,10 +87,10 @@ def _point_lights(args, env, inputs) -> None:
     import json
     import time
 
-    from ..baselines import median_cut, variance_minimisation
-    from ..io import write_image
-    from ..lights import preview
-    from ..lightsfile import point_lights_document
+    from ..lights.baselines import median_cut, variance_minimisation
+    from ..maps.images import write_image
+    from ..lights.decompose import preview
+    from ..lights.lightsfile import point_lights_document
 
     name = POINT_METHODS[args.method]
     t0 = time.perf_counter()

@@ -1,5 +1,5 @@
 """``lightprobe radiance``: radiance environment maps for a BRDF at geodesic views, or one exact map for one view
-(Cabral, Olano & Nemec 1999; SPEC §4)."""
+(Cabral, Olano & Nemec 1999; docs/spec.md §4)."""
 
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ def register(sub) -> None:
     p = sub.add_parser("radiance", help="radiance environment maps of a BRDF (Cabral, Olano & Nemec 1999)",
                        description="Compute sphere-layout radiance maps L_r(n; v) of an isotropic BRDF: one per "
                                    "view of an icosahedron (12) or its geodesic subdivisions (42, 162) into a "
-                                   "folder with manifest.json (format lightprobe.radiance, version 1), or with "
+                                   "folder with manifest.json (format lightprobe.glossy.radiance, version 1), or with "
                                    "--view one exact map for one view (OUT.exr and OUT.json); or, with "
                                    "--synthesize, the map of a new view blended from a folder of maps "
                                    "(reflection-space IBR).")
@@ -66,10 +66,10 @@ def run(args) -> None:
 def _synthesize(args) -> None:
     import json
 
-    from ..files import check_output, write_text
-    from ..radiance import view_frame
-    from ..radiancefile import RadianceSet, manifest, read_radiance_set
-    from ..rsibr import blend_weights, sums_smooth_part, synthesize
+    from ..util.files import check_output, write_text
+    from ..glossy.radiance import view_frame
+    from ..glossy.radiancefile import RadianceSet, manifest, read_radiance_set
+    from ..glossy.rsibr import blend_weights, sums_smooth_part, synthesize
 
     if args.file is None or not args.file.is_dir():
         refuse("--synthesize reads a folder of radiance maps (lightprobe radiance … -o FOLDER): give it as FILE")
@@ -100,10 +100,10 @@ def _synthesize(args) -> None:
 
 
 def _bake(args) -> None:
-    from ..brdf import parse_brdf
-    from ..files import check_output
-    from ..radiance import check_views, geodesic_views, prepare
-    from ..radiancefile import manifest, radiance_set, write_radiance_set
+    from ..glossy.brdf import parse_brdf
+    from ..util.files import check_output
+    from ..glossy.radiance import check_views, geodesic_views, prepare
+    from ..glossy.radiancefile import manifest, radiance_set, write_radiance_set
 
     brdf = parse_brdf(args.brdf)
     inputs = [args.file] if args.file else []
@@ -141,7 +141,7 @@ def _bake(args) -> None:
         return
     import json
 
-    from ..files import write_text
+    from ..util.files import write_text
 
     maps[0].save(args.output, inputs=inputs)
     doc = manifest(rset, [args.output.name], timings, source)

@@ -12,7 +12,7 @@ DEFAULT_SPP = {"reference": 256}  # the project's renderer: 2 per axis
 
 
 def register(sub) -> None:
-    from ..names import RENDER_METHODS as METHODS, WINDOWS
+    from ..util.names import RENDER_METHODS as METHODS, WINDOWS
 
     p = sub.add_parser("render", help="render a scene or a mesh under a probe (sh, brute, hybrid, lights, mediancut, varmin, "
                             "or the Mitsuba reference)",
@@ -57,7 +57,7 @@ def register(sub) -> None:
 def scene_for(args):
     from dataclasses import replace
 
-    from ..envmap import read_envmap
+    from ..maps import read_envmap
     from ..render.scene import builtin_scene, mesh_scene
     from ..render.scenefile import load_scene
 
@@ -77,10 +77,10 @@ def scene_for(args):
 
 def method_options(args) -> dict:
     """The options of the chosen method, from the command line (checked: a bad count is one line, exit 2)."""
-    from ..hybrid import DEFAULT_AMBIENT_ORDER
+    from ..lights.hybrid import DEFAULT_AMBIENT_ORDER
 
     if args.method in ("mediancut", "varmin"):
-        from ..baselines import check_count
+        from ..lights.baselines import check_count
 
         check_count(args.count)
         return {"count": args.count}
@@ -100,8 +100,8 @@ def method_options(args) -> dict:
 
 
 def run(args) -> None:
-    from ..files import check_output
-    from ..io import WRITE_FORMATS, write_image
+    from ..util.files import check_output
+    from ..maps.images import WRITE_FORMATS, write_image
     from ..render.methods import method
     from ..render.renderer import render
 
@@ -115,7 +115,7 @@ def run(args) -> None:
         refuse(f"--spp for {args.method} must be within {lo}..{hi}, got {spp}")
     options = method_options(args) if args.method != "reference" else {}
     if args.size is not None and args.method != "reference":  # refuse before reading anything when the size says so
-        from ..limits import check_memory
+        from ..util.limits import check_memory
         from ..render.renderer import render_memory
 
         check_memory(render_memory(*args.size, spp, 0), f"rendering {args.size[0]}x{args.size[1]} at {spp}x{spp} "

@@ -12,12 +12,12 @@ WORKING_BYTES_PER_PIXEL = 64  # per-pixel directions and solid angles for layout
 
 
 def register(sub) -> None:
-    from ..names import FRAMES, WINDOWS
+    from ..util.names import FRAMES, WINDOWS
 
     p = sub.add_parser("sh", help="spherical-harmonic coefficients of the lighting (paper Figure 2)",
                        description="Radiance SH coefficients L_lm (real SH without Condon-Shortley phase, flat "
                                    "order l(l+1)+m) of a map, in a chosen frame. JSON is lightprobe's SH schema "
-                                   "(format lightprobe.sh, version 2), the same as 'export --to json'.")
+                                   "(format lightprobe.sh.basis, version 2), the same as 'export --to json'.")
     add_probe(p)
     add_option(p, "--order", type=Number(int, 0, MAX_ORDER), default=2, help="l_max (2: nine coefficients)")
     p.add_argument("--frame", choices=list(FRAMES), default="world",
@@ -32,14 +32,14 @@ def register(sub) -> None:
 def run(args) -> None:
     import numpy as np
 
-    from ..sh import degree_order, name, project
-    from ..shfile import sh_json
+    from ..sh.basis import degree_order, name, project
+    from ..sh.shfile import sh_json
 
     inputs = [args.file] if args.file else []
     if args.format == "npy" and not args.output:
         refuse("--format npy needs --output FILE")
     if args.output:
-        from ..files import check_output
+        from ..util.files import check_output
 
         check_output(args.output, inputs, text=args.format != "npy")
     sh = project(load(args.file, args.layout, working_bytes_per_pixel=WORKING_BYTES_PER_PIXEL), args.order,
@@ -49,7 +49,7 @@ def run(args) -> None:
 
         buffer = io.BytesIO()
         np.save(buffer, sh.coeffs)
-        from ..files import write_bytes
+        from ..util.files import write_bytes
 
         write_bytes(args.output, buffer.getvalue(), inputs)
         return

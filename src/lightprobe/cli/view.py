@@ -35,7 +35,7 @@ def register(sub) -> None:
 
 
 def run(args) -> None:
-    from ..radiance import check_views
+    from ..glossy.radiance import check_views
     from ..viewer.bake import DEFAULT_BRDFS, BakeOptions, bake, cache_folder, check_brdfs, check_inputs, read_manifest
     from ..viewer.server import ViewServer, export_static, three_root
 

@@ -2,11 +2,11 @@
 
 * Babylon.js ``.env`` (its ``EnvironmentTextureTools`` format, version 2): 8 magic bytes, a JSON manifest ended by
   a NUL, then one PNG per cube face and mip. The manifest carries the irradiance as Babylon's
-  ``SphericalPolynomial`` (:func:`lightprobe.export.babylon_polynomial`, E/π in Babylon's frame) and the specular
+  ``SphericalPolynomial`` (:func:`lightprobe.exports.sh.babylon_polynomial`, E/π in Babylon's frame) and the specular
   mips' byte ranges with their ``lodGenerationScale``; the PNGs are RGBD-encoded GGX-prefiltered radiance
-  (:mod:`lightprobe.prefilter`, Babylon's roughness per mip).
+  (:mod:`lightprobe.glossy.prefilter`, Babylon's roughness per mip).
 * glTF ``EXT_lights_image_based``: the same RGBD mips as ``specularImages`` beside ``irradianceCoefficients``
-  (:func:`lightprobe.export.gltf_coefficients`), as a ``.glb`` or a ``.gltf`` with embedded images. The extension
+  (:func:`lightprobe.exports.sh.gltf_coefficients`), as a ``.glb`` or a ``.gltf`` with embedded images. The extension
   fixes neither the image encoding nor the roughness per mip; lightprobe follows its reference consumer, Babylon's
   loader: RGBD PNGs, and a full chain (levels = log₂ size + 1), which that loader reads with
   lodGenerationScale = (levels − 1)/log₂ size = 1, so mip i holds α = 2^i/size.
@@ -27,12 +27,12 @@ import warnings
 
 import numpy as np
 
-from .envmap import EnvMap
-from .errors import InputError, LightprobeWarning, UsageError
-from .export import babylon_polynomial, gltf_coefficients
-from .frames import BABYLON, Frame
-from .prefilter import PrefilteredCube, babylon_alphas, prefilter_cube
-from .sh import SHCoeffs
+from ..maps import EnvMap
+from ..util.errors import InputError, LightprobeWarning, UsageError
+from .sh import babylon_polynomial, gltf_coefficients
+from ..maps.frames import BABYLON, Frame
+from ..glossy.prefilter import PrefilteredCube, babylon_alphas, prefilter_cube
+from ..sh.basis import SHCoeffs
 
 ENV_MAGIC = bytes([0x86, 0x16, 0x87, 0x96, 0xF6, 0xD6, 0x96, 0x36])  # Babylon's .env signature
 ENV_VERSION = 2
@@ -121,7 +121,7 @@ def env_file(cube: PrefilteredCube, polynomial: dict[str, np.ndarray]) -> bytes:
 
 def read_env_manifest(data: bytes) -> dict:
     """The JSON manifest of a ``.env`` file, with ``binaryDataPosition`` (where its images start) added; anything
-    else raises :class:`~lightprobe.errors.InputError` in one line."""
+    else raises :class:`~lightprobe.util.errors.InputError` in one line."""
     if data[:8] != ENV_MAGIC:
         raise InputError("not a Babylon .env file (wrong signature)")
     end = data.find(b"\0", 8, 8 + (16 << 20))
@@ -143,7 +143,7 @@ def gltf_ibl(env: EnvMap, sh: SHCoeffs, size: int = 256, scaling: str = "irradia
     """A glTF document (dict) with one ``EXT_lights_image_based`` light used by its scene, and its PNG images in
     order (``images[i]`` of the document): ``specularImages`` are a full GGX chain of a ``size`` cube of ``env``
     (α = 2^i/size, as Babylon's loader reads a full chain), ``irradianceCoefficients`` from ``sh`` (see
-    :func:`lightprobe.export.gltf_coefficients` for ``scaling``), both in ``frame``."""
+    :func:`lightprobe.exports.sh.gltf_coefficients` for ``scaling``), both in ``frame``."""
     cube = prefilter_cube(env, size, babylon_alphas(size, 1.0), frame)
     warn_if_clipped(cube)
     pngs = face_pngs(cube, gamma_space=True)

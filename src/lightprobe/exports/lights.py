@@ -1,6 +1,6 @@
 """Area lights + ambient SH for engines: each light as the engine's directional light, in its own units and frame.
 
-Input: a :class:`~lightprobe.lightsfile.LightSet` (world frame; each light's RGB ``power`` = ∫L dω over its cap of
+Input: a :class:`~lightprobe.lights.lightsfile.LightSet` (world frame; each light's RGB ``power`` = ∫L dω over its cap of
 angular radius r; the ambient as radiance SH). The conversions, each named once:
 
 * :func:`perpendicular_irradiance` — a directional light's "intensity × colour" in every engine here is the
@@ -8,9 +8,9 @@ angular radius r; the ambient as radiance SH). The conversions, each named once:
   Babylon, Filament and glTF's KHR_lights_punctual, whose lux is that irradiance). A uniform cap of radiance
   L = P/Ω gives E(n) = L π sin²r (n·d) wherever the whole cap is above the horizon, so E⊥ = P (1 + cos r)/2 makes the
   directional light exact there (only the normals whose horizon cuts the cap differ). Unity's built-in BRDF leaves
-  out the 1/π, so its intensity is E⊥/π (as its ambient SH is E/π: :func:`lightprobe.export.unity_coefficients`).
+  out the 1/π, so its intensity is E⊥/π (as its ambient SH is E/π: :func:`lightprobe.exports.sh.unity_coefficients`).
 * Directions: the engines want the direction the light *travels* (−d), stated in the same frame as each engine's
-  SH export (:data:`lightprobe.export.DEFAULT_FRAMES`), so lights and ambient stay where the engine's background
+  SH export (:data:`lightprobe.exports.sh.DEFAULT_FRAMES`), so lights and ambient stay where the engine's background
   shows them.
 * Colour and intensity: intensity = the largest channel of the engine's irradiance, colour = the channels over it
   (linear RGB in [0, 1]).
@@ -25,13 +25,12 @@ import math
 
 import numpy as np
 
-from .errors import UsageError
-from .export import (babylon_polynomial, export_threejs, filament_coefficients, gltf_coefficients,
-                     unity_coefficients)
-from .frames import BABYLON, FILAMENT, THREEJS, UNITY, WORLD, Frame
-from .lightsfile import LightSet
-from .names import LIGHT_EXPORT_TARGETS
-from .sh import SHCoeffs, basis, n_coeffs
+from ..util.errors import UsageError
+from .sh import babylon_polynomial, export_threejs, filament_coefficients, gltf_coefficients, unity_coefficients
+from ..maps.frames import BABYLON, FILAMENT, THREEJS, UNITY, WORLD, Frame
+from ..lights.lightsfile import LightSet
+from ..util.names import LIGHT_EXPORT_TARGETS
+from ..sh.basis import SHCoeffs, basis, n_coeffs
 
 # glTF nodes as Babylon's glTF loader places them: it turns the file's right-handed space into its left-handed one
 # (its root node: z mirrored, then a half turn about +Y, i.e. (x, y, z) → (−x, y, z)); this frame makes a light in
@@ -105,7 +104,7 @@ def _brightest(lights: LightSet) -> list[int]:
 
 # ---- the engines --------------------------------------------------------------------------------------------------
 def export_threejs_lights(lights: LightSet, frame: Frame = THREEJS) -> str:
-    """A three.js ObjectLoader JSON ``Group``: the ambient as a ``LightProbe`` (as :func:`lightprobe.export.
+    """A three.js ObjectLoader JSON ``Group``: the ambient as a ``LightProbe`` (as :func:`lightprobe.exports.sh.
     export_threejs`) and one ``DirectionalLight`` per light, placed 10 units toward the light with its target at the
     origin (three.js lights along position − target). ``color`` is the sRGB hex three.js's ``Color`` decodes to the
     linear colour (8 bits a channel: ≤ 0.4 % off); ``userData`` holds the exact linear colour. Intensity: E⊥
@@ -137,7 +136,7 @@ def export_filament_lights(lights: LightSet, frame: Frame = FILAMENT) -> str:
     """Filament takes one directional light: the brightest as ``LightManager::Type::SUN`` (``direction`` = travel,
     ``intensity`` E⊥ in lux with the IndirectLight at intensity 1, linear ``color``, ``sunAngularRadius`` the cap's
     radius in degrees within Filament's 0.25°–20°); every other light is folded into the ambient, whose
-    ``irradiance`` table (IndirectLight::Builder::irradiance(3, sh)) is :func:`lightprobe.export.
+    ``irradiance`` table (IndirectLight::Builder::irradiance(3, sh)) is :func:`lightprobe.exports.sh.
     filament_coefficients` of it."""
     order = _brightest(lights)
     sun = engine_lights(LightSet(lights.directions[order[:1]], lights.radii[order[:1]], lights.powers[order[:1]],
@@ -156,7 +155,7 @@ def export_filament_lights(lights: LightSet, frame: Frame = FILAMENT) -> str:
 def export_babylon_lights(lights: LightSet, frame: Frame = BABYLON) -> str:
     """Babylon: ``new DirectionalLight(name, Vector3.FromArray(direction), scene)`` per light (``direction`` =
     travel in Babylon's frame), ``intensity`` E⊥ (its PBR Lambert term divides by π), ``diffuse`` the linear colour;
-    the ambient as the ``SphericalPolynomial`` of :func:`lightprobe.export.export_babylon`. A Babylon material
+    the ambient as the ``SphericalPolynomial`` of :func:`lightprobe.exports.sh.export_babylon`. A Babylon material
     takes 4 lights unless its ``maxSimultaneousLights`` is raised: ``maxSimultaneousLights`` says how many."""
     poly = babylon_polynomial(ambient_sh(lights, []), frame)
     out = [{"name": f"lightprobe light {k + 1}", "direction": light["travel"], "intensity": light["intensity"],
@@ -172,7 +171,7 @@ def export_unity_lights(lights: LightSet, frame: Frame = UNITY) -> str:
     """A C# method making one ``Light`` (``LightType.Directional``) per light — ``transform.rotation =
     Quaternion.LookRotation(travel)`` (a Unity light shines along its +Z), linear ``color``, ``intensity`` E⊥/π
     (Unity's BRDF leaves out the 1/π) — and setting ``RenderSettings.ambientProbe`` to the ambient
-    (:func:`lightprobe.export.unity_coefficients`). Needs a linear-colour-space project."""
+    (:func:`lightprobe.exports.sh.unity_coefficients`). Needs a linear-colour-space project."""
     sh = unity_coefficients(ambient_sh(lights, []), frame)
     lines = [f"        sh[{ch}, {i}] = {sh[i, ch]:.9g}f;" for ch in range(3) for i in range(9)]
     for k, light in enumerate(engine_lights(lights, frame, over_pi=True)):
@@ -195,11 +194,11 @@ def gltf_lights(lights: LightSet, specular_size: int = 32) -> tuple[dict, list[b
     """A glTF 2.0 document and its images: ``KHR_lights_punctual`` directional lights (``intensity`` E⊥ in lux,
     linear ``color``), each on a node whose ``rotation`` turns the light's −Z onto its travel direction in
     :data:`GLTF_NODES`, and the ambient as the scene's ``EXT_lights_image_based`` light
-    (:func:`lightprobe.containers.gltf_ibl`): ``irradianceCoefficients`` of its SH, and — the file has no map — its
+    (:func:`lightprobe.exports.containers.gltf_ibl`): ``irradianceCoefficients`` of its SH, and — the file has no map — its
     specular cube prefiltered from the ambient radiance the SH describes (clamped at 0; smooth, as an ambient is)."""
     from .containers import gltf_ibl
-    from .envmap import EnvMap
-    from .layouts import LATLONG
+    from ..maps import EnvMap
+    from ..maps.layouts import LATLONG
 
     grid = LATLONG.grid_shape(32)
     if lights.ambient is not None:
@@ -232,8 +231,8 @@ def _quaternion_from_minus_z(travel) -> list[float]:
 
 
 def export_lights(lights: LightSet, target: str) -> str:
-    """The lights file for ``target`` (:data:`lightprobe.names.LIGHT_EXPORT_TARGETS`; glTF: :func:`gltf_lights`,
-    written with :func:`lightprobe.containers.glb` or ``gltf_embedded``)."""
+    """The lights file for ``target`` (:data:`lightprobe.util.names.LIGHT_EXPORT_TARGETS`; glTF: :func:`gltf_lights`,
+    written with :func:`lightprobe.exports.containers.glb` or ``gltf_embedded``)."""
     writers = {"threejs": export_threejs_lights, "filament": export_filament_lights,
                "babylon": export_babylon_lights, "unity": export_unity_lights}
     if target not in writers:

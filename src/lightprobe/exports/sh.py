@@ -1,6 +1,6 @@
 """SH irradiance for engines: every target's frame, sign convention, order and scaling, converted explicitly.
 
-Input is always :class:`~lightprobe.sh.SHCoeffs` of **radiance** (L_lm, the paper's basis without Condon–Shortley
+Input is always :class:`~lightprobe.sh.basis.SHCoeffs` of **radiance** (L_lm, the paper's basis without Condon–Shortley
 phase, l_max ≥ 2). Each exporter states, at its function, what its numbers are. Notation used below:
 
 * ``K_i``: the positive constant of basis function i as a polynomial: 0.282095; 0.488603 (y, z, x);
@@ -20,12 +20,12 @@ from math import pi
 
 import numpy as np
 
-from .names import EXPORT_TARGETS, GLTF_SCALINGS
-from .errors import UsageError
-from .irradiance import C1, C2, C3, C4, C5
-from .frames import BABYLON, FILAMENT, THREEJS, UNITY, WORLD, Frame, frame as frame_named
-from .sh import SHCoeffs, a_hat_per_coefficient, name
-from .shfile import sh_json
+from ..util.names import EXPORT_TARGETS, GLTF_SCALINGS
+from ..util.errors import UsageError
+from ..sh.irradiance import C1, C2, C3, C4, C5
+from ..maps.frames import BABYLON, FILAMENT, THREEJS, UNITY, WORLD, Frame, frame as frame_named
+from ..sh.basis import SHCoeffs, a_hat_per_coefficient, name
+from ..sh.shfile import sh_json
 
 TARGETS = EXPORT_TARGETS
 DEFAULT_FRAMES = {"json": WORLD, "threejs": THREEJS, "filament": FILAMENT, "unity": UNITY, "gltf": BABYLON,
@@ -73,7 +73,7 @@ def times_pi(c: np.ndarray) -> np.ndarray:
 
 # ---- targets --------------------------------------------------------------------------------------------------------
 def export_json(sh: SHCoeffs, frame: Frame = WORLD) -> str:
-    """lightprobe's own SH JSON (:mod:`lightprobe.shfile`): radiance L_lm in the paper's basis (no CS phase), any
+    """lightprobe's own SH JSON (:mod:`lightprobe.sh.shfile`): radiance L_lm in the paper's basis (no CS phase), any
     order, flat order, ``frame``."""
     return sh_json(sh, frame)
 
@@ -81,7 +81,7 @@ def export_json(sh: SHCoeffs, frame: Frame = WORLD) -> str:
 def threejs_coefficients(sh: SHCoeffs, frame: Frame = THREEJS) -> np.ndarray:
     """three.js ``SphericalHarmonics3``: radiance L_lm (no CS phase; its getAt/getIrradianceAt use +0.488603 y etc.),
     order L00, L1−1, L10, L11, L2−2, L2−1, L20, L21, L22, in the frame three.js shows an equirectangular
-    background in (:data:`lightprobe.frames.THREEJS`: (−z, y, x) of world), so light comes from where the
+    background in (:data:`lightprobe.maps.frames.THREEJS`: (−z, y, x) of world), so light comes from where the
     background shows it. ``getIrradianceAt`` returns E; the shader multiplies by the Lambert BRDF (÷π)."""
     return _nine(sh, frame)
 

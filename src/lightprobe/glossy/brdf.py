@@ -1,4 +1,4 @@
-"""Isotropic BRDFs for glossy radiance maps and rendering (Cabral, Olano & Nemec 1999; SPEC §4).
+"""Isotropic BRDFs for glossy radiance maps and rendering (Cabral, Olano & Nemec 1999; docs/spec.md §4).
 
 Conventions, the same for every class here:
 
@@ -23,8 +23,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import UsageError
-from .jit import njit, prange
+from ..util.errors import UsageError
+from ..util.jit import njit, prange
 
 # RGB complex indices of refraction (η, k) of Mitsuba 3's conductor presets, read from its scalar_rgb variant
 # (its spectral data reduced to RGB): the names `conductor=gold` etc. mean exactly what Mitsuba's do.

@@ -17,7 +17,7 @@ angle) near r, with a direct sum over a coarse level for the lobe's far tail. A 
 (every part is normalised by the same estimate for L = 1); against brute-force integration over every source
 texel the chain is within 1 % in the median texel (tests/test_prefilter.py).
 
-Frames: the chain is a :data:`~lightprobe.layouts.CUBE` map (OpenGL face orientation) of the directions of
+Frames: the chain is a :data:`~lightprobe.maps.layouts.CUBE` map (OpenGL face orientation) of the directions of
 ``frame``: texel direction d shows the world direction ``frame.to_world(d)``.
 """
 
@@ -28,11 +28,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .envmap import EnvMap, box_reduce, resample
-from .errors import UsageError
-from .frames import WORLD, Frame
-from .layouts import CUBE
-from .progress import track
+from ..maps import EnvMap, box_reduce, resample
+from ..util.errors import UsageError
+from ..maps.frames import WORLD, Frame
+from ..maps.layouts import CUBE
+from ..util.progress import track
 
 MAX_SIZE = 1024
 DEFAULT_SAMPLES = 128  # GGX samples per texel: past 64 the chain moves by under 1 % (tests)
@@ -170,7 +170,7 @@ def _kernel_sums(r: np.ndarray, level: EnvMap, alpha: float, below: float = 2.0)
 
 
 def _lobe_sums(r, d, omega, values, alpha, below=2.0) -> tuple[np.ndarray, np.ndarray]:
-    from .kernels import ggx_lobe_sums  # numba loads with the first kernel, not with the package
+    from ..maps.lookups import ggx_lobe_sums  # numba loads with the first kernel, not with the package
 
     out = np.empty((len(r), 4))
     ggx_lobe_sums(np.ascontiguousarray(r, np.float64), np.ascontiguousarray(d.T, np.float32),

@@ -1,19 +1,19 @@
-"""Reflected radiance and radiance environment maps for any isotropic BRDF (Cabral, Olano & Nemec 1999; SPEC §4).
+"""Reflected radiance and radiance environment maps for any isotropic BRDF (Cabral, Olano & Nemec 1999; docs/spec.md §4).
 
 Quantity: **radiance** (the map's units): L_r(n; v) = ∫_{n·ω>0} f_r(ω, v; n) L(ω) (n·ω) dω, the light a surface of
 normal n sends toward the eye at v (both unit, world frame, leaving the surface).
 
 How it is computed (:func:`reflected_radiance`): the map is resampled (energy-conserving) into a world cube; its
-brightest texels (a sun) are taken out as point sources (:func:`lightprobe.prefilter.split_peaks`); the bounded
+brightest texels (a sun) are taken out as point sources (:func:`lightprobe.glossy.prefilter.split_peaks`); the bounded
 rest is box-filtered down to the coarsest level whose texels are at most an eighth of the BRDF's lobe across
-(:meth:`~lightprobe.brdf.BRDF.lobe_width`), within a budget of evaluations; every texel of that level and every
-peak is then summed exactly by a compiled kernel (:func:`lightprobe.brdf.reflected_sums`). Wide lobes read a
+(:meth:`~lightprobe.glossy.brdf.BRDF.lobe_width`), within a budget of evaluations; every texel of that level and every
+peak is then summed exactly by a compiled kernel (:func:`lightprobe.glossy.brdf.reflected_sums`). Wide lobes read a
 coarse level (Lambert: 8² faces), sharp ones a fine one; accuracy against a brute-force sum over every texel of the
 full cube is measured in tests/test_radiance.py and the level used is stated with each map.
 
 A **radiance map** for one view v is a ``sphere``-layout image in the view's frame T = [right, up, v]: the texel of
-local normal n_local (SPEC §2's n(x, y)) holds L_r(T n_local; v). As an :class:`~lightprobe.envmap.EnvMap` its layout
-is :class:`~lightprobe.layouts.Sphere` with camera axes T, whose texel direction is the mirror of v about that normal
+local normal n_local (docs/spec.md §2's n(x, y)) holds L_r(T n_local; v). As an :class:`~lightprobe.maps.EnvMap` its layout
+is :class:`~lightprobe.maps.layouts.Sphere` with camera axes T, whose texel direction is the mirror of v about that normal
 — so looking the map up at a surface's mirror direction reads that surface's reflected radiance.
 """
 
@@ -25,9 +25,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .brdf import BRDF, reflected_sums
-from .envmap import EnvMap, resample
-from .errors import UsageError
-from .layouts import CUBE, Sphere
+from ..maps import EnvMap, resample
+from ..util.errors import UsageError
+from ..maps.layouts import CUBE, Sphere
 from .prefilter import box_pyramid, box_reduce_to, split_peaks
 
 WORKING_SIZE = 128  # face size of the working cube (0.7° texels)
@@ -43,7 +43,7 @@ class Lighting:
     """An environment prepared for :func:`reflected_radiance`: the box-filtered pyramid (finest first) of the
     working cube's bounded part, the peaks taken out of it (directions, RGB power ∫L dω), and ``smooth``: the whole
     working cube, peaks included, box-filtered to SMOOTH_SIZE faces (radiance, world frame; what
-    :mod:`lightprobe.rsibr` sums exactly for a new view — :func:`smooth_radiance`)."""
+    :mod:`lightprobe.glossy.rsibr` sums exactly for a new view — :func:`smooth_radiance`)."""
 
     levels: tuple
     peak_directions: np.ndarray
@@ -82,7 +82,7 @@ def _smooth_cube(cube: EnvMap) -> EnvMap:
 def smooth_radiance(smooth: EnvMap, brdf: BRDF, normals: np.ndarray, views: np.ndarray) -> np.ndarray:
     """L_r(n; v) (radiance, RGB, (N, 3)) of the environment ``smooth`` (any layout, radiance, world frame) at unit
     ``normals`` (N, 3) seen from unit ``views`` (N, 3, or one (3,)), every texel summed exactly: no level choice,
-    no peaks — the smooth part of a radiance map that :mod:`lightprobe.rsibr` computes for each new view."""
+    no peaks — the smooth part of a radiance map that :mod:`lightprobe.glossy.rsibr` computes for each new view."""
     normals = np.ascontiguousarray(np.asarray(normals, dtype=np.float64).reshape(-1, 3))
     views = np.ascontiguousarray(np.broadcast_to(np.asarray(views, dtype=np.float64), normals.shape))
     model, params, table = brdf.kernel()
@@ -127,7 +127,7 @@ def reflected_radiance(lighting: Lighting | EnvMap, brdf: BRDF, normals: np.ndar
 # ---- views and their frames -------------------------------------------------------------------------------------
 def view_frame(view: np.ndarray) -> np.ndarray:
     """T = [right, up, v] (columns) for unit view direction v: up is world +Y made perpendicular to v, or world −Z
-    where v is within ~8° of ±Y (|v_y| > 0.99), so every view has one (SPEC §4)."""
+    where v is within ~8° of ±Y (|v_y| > 0.99), so every view has one (docs/spec.md §4)."""
     v = np.asarray(view, dtype=np.float64)
     v = v / np.linalg.norm(v)
     hint = np.array([0.0, 1.0, 0.0]) if abs(v[1]) <= 0.99 else np.array([0.0, 0.0, -1.0])

@@ -1,19 +1,19 @@
 """Radiance-map sets on disk: a folder of sphere-layout EXRs, one per view, and its ``manifest.json``.
 
-Schema ``{"format": "lightprobe.radiance", "version": 1, ...}``:
+Schema ``{"format": "lightprobe.glossy.radiance", "version": 1, ...}``:
 
-* ``frame``: ``world`` (SPEC §1) — every direction and frame below is in it;
+* ``frame``: ``world`` (docs/spec.md §1) — every direction and frame below is in it;
 * ``quantity``: ``radiance`` — each texel is L_r(n; v), the radiance the BRDF sends toward the view v from a
-  surface of normal n = T·n_local, n_local the texel's local normal (x, y, √(1 − x² − y²)) (SPEC §4);
+  surface of normal n = T·n_local, n_local the texel's local normal (x, y, √(1 − x² − y²)) (docs/spec.md §4);
 * ``layout``: ``sphere``, ``size`` (texels across);
-* ``brdf``: ``spec`` (what :func:`lightprobe.brdf.parse_brdf` reads back), ``name``, ``central`` (``normal`` or
+* ``brdf``: ``spec`` (what :func:`lightprobe.glossy.brdf.parse_brdf` reads back), ``name``, ``central`` (``normal`` or
   ``mirror``: the warp RS-IBR uses) and its parameters;
 * ``views``: each ``file`` (relative to the folder), ``direction`` (v, unit), ``up`` and ``frame`` (T as three
   columns: right, up, v, as rows of [[right], [up], [v]]);
 * ``triangles``: the view mesh (indices into ``views``, counter-clockwise seen from outside) — absent for one view;
 * ``smooth`` (optional, sets of views only): ``file`` — the environment box-filtered to a cube of
   ``size`` (16) faces, a 6N × N EXR strip, radiance, world frame, peaks included; with it RS-IBR sums the smooth
-  part of a new view's map exactly and warps only the rest (:mod:`lightprobe.rsibr`); without it (sets written
+  part of a new view's map exactly and warps only the rest (:mod:`lightprobe.glossy.rsibr`); without it (sets written
   before it existed) synthesis warps the whole maps, as the paper does;
 * ``method``: how the maps were computed (the source level of the working cube, the peaks) and ``timings``.
 
@@ -33,12 +33,12 @@ from pathlib import Path
 import numpy as np
 
 from .brdf import BRDF, parse_brdf
-from .envmap import EnvMap, from_image
-from .errors import InputError, UsageError
-from .layouts import CUBE, Sphere
-from .shfile import versioned_document
+from ..maps import EnvMap, from_image
+from ..util.errors import InputError, UsageError
+from ..maps.layouts import CUBE, Sphere
+from ..sh.shfile import versioned_document
 
-FORMAT, VERSION = "lightprobe.radiance", 1
+FORMAT, VERSION = "lightprobe.glossy.radiance", 1
 MAX_BYTES = 1 << 20
 MAX_VIEWS = 162
 SMOOTH_FILE = "smooth.exr"
@@ -48,7 +48,7 @@ SMOOTH_FILE = "smooth.exr"
 class RadianceSet:
     """Radiance maps of one BRDF at view directions (world frame): ``maps[i]`` is for ``views[i]`` and has layout
     Sphere(``frames[i]``); ``triangles`` index the view mesh (None for a single view); ``smooth`` the
-    environment's smooth cube (:attr:`lightprobe.radiance.Lighting.smooth`) or None."""
+    environment's smooth cube (:attr:`lightprobe.glossy.radiance.Lighting.smooth`) or None."""
 
     brdf: BRDF
     views: np.ndarray  # (N, 3) unit
@@ -65,11 +65,11 @@ class RadianceSet:
 
 def radiance_set(lighting, brdf: BRDF, views: np.ndarray, triangles: np.ndarray | None, size: int,
                  method: dict | None = None, progress: str | None = None) -> RadianceSet:
-    """The set of ``brdf``'s radiance maps (:func:`lightprobe.radiance.radiance_map`, ``size``²) at unit ``views``
-    (N, 3) under ``lighting`` (a :class:`lightprobe.radiance.Lighting` or an EnvMap), with the frames
-    :func:`lightprobe.radiance.view_frame` gives them; ``triangles`` the view mesh, or None. ``progress``: a
+    """The set of ``brdf``'s radiance maps (:func:`lightprobe.glossy.radiance.radiance_map`, ``size``²) at unit ``views``
+    (N, 3) under ``lighting`` (a :class:`lightprobe.glossy.radiance.Lighting` or an EnvMap), with the frames
+    :func:`lightprobe.glossy.radiance.view_frame` gives them; ``triangles`` the view mesh, or None. ``progress``: a
     progress bar's label."""
-    from .progress import track
+    from ..util.progress import track
     from .radiance import prepare, radiance_map, view_frame
 
     if isinstance(lighting, EnvMap):
@@ -131,8 +131,8 @@ def write_radiance_set(folder: str | os.PathLike, rset: RadianceSet, timings: di
 def read_radiance_set(folder: str | os.PathLike) -> RadianceSet:
     """A set written by :func:`write_radiance_set` (or one map's ``OUT.json`` path), every field checked: a missing
     or wrong-sized map, a frame that is not a rotation with v as its third column, or a bad triangle is one clear
-    :class:`~lightprobe.errors.InputError`."""
-    from .io import read_image
+    :class:`~lightprobe.util.errors.InputError`."""
+    from ..maps.images import read_image
 
     path = Path(folder)
     manifest_path = path / "manifest.json" if path.is_dir() else path
@@ -188,7 +188,7 @@ def read_radiance_set(folder: str | os.PathLike) -> RadianceSet:
 def _smooth_field(field, folder: Path, fail) -> EnvMap:
     """The manifest's ``smooth`` cube, checked: a file in the folder, a cube strip of the stated face size
     (1 to 64), finite and non-negative radiance."""
-    from .io import read_image
+    from ..maps.images import read_image
 
     if not isinstance(field, dict) or field.get("file") != SMOOTH_FILE or field.get("layout") != "cube" or \
             not isinstance(field.get("size"), int) or not 1 <= field["size"] <= 64:

@@ -1,4 +1,4 @@
-"""Reflection-space image-based rendering (Cabral, Olano & Nemec 1999; SPEC §4): the radiance map of any view,
+"""Reflection-space image-based rendering (Cabral, Olano & Nemec 1999; docs/spec.md §4): the radiance map of any view,
 synthesised from the precomputed maps of the three views around it.
 
 For a new view v_d: the spherical triangle of the view mesh that contains v_d gives three source maps and their
@@ -14,8 +14,8 @@ sources (exact source values at the warped texels change it by < 0.1 %) but in i
 direction seen from another view is another n·v, so the lobe is cut by another horizon and masked differently —
 98 % of the error sits in the outer ring of the map (n·v < 0.48). That part of the radiance varies smoothly with
 the lighting, so it is computed rather than warped: with S(n; v) the radiance of the environment box-filtered to
-16² faces (:attr:`lightprobe.radiance.Lighting.smooth`, summed exactly by
-:func:`lightprobe.radiance.smooth_radiance`), each source contributes L_k − S(·; v_k) at its warped texel, and
+16² faces (:attr:`lightprobe.glossy.radiance.Lighting.smooth`, summed exactly by
+:func:`lightprobe.glossy.radiance.smooth_radiance`), each source contributes L_k − S(·; v_k) at its warped texel, and
 S(n_d; v_d) of the new view is added back. Only the detail finer than 5.6° is warped. S of each view is tabulated
 over its hemisphere of local normals (a TABLE_SIZE² grid in the Lambert azimuthal equal-area projection, read
 bilinearly without trigonometry) — the sources' once per set, the new view's per synthesis; per-point views
@@ -23,8 +23,8 @@ bilinearly without trigonometry) — the sources' once per set, the new view's p
 texels show in S as separate highlights and synthesis stays the paper's (:func:`sums_smooth_part`). At 42 views,
 GGX α = 0.2 on Grace (64², 100 random views): relative RMSE 7.2 % → 1.7 % (benchmarks/bench_glossy.py).
 
-Quantities: radiance, as the source maps (:mod:`lightprobe.radiance`); frames: world; the synthesised map is a
-``sphere``-layout :class:`~lightprobe.envmap.EnvMap` in the frame :func:`lightprobe.radiance.view_frame` gives v_d,
+Quantities: radiance, as the source maps (:mod:`lightprobe.glossy.radiance`); frames: world; the synthesised map is a
+``sphere``-layout :class:`~lightprobe.maps.EnvMap` in the frame :func:`lightprobe.glossy.radiance.view_frame` gives v_d,
 like the source maps, so it can be compared with the map computed directly for v_d.
 """
 
@@ -36,10 +36,10 @@ from functools import lru_cache
 
 import numpy as np
 
-from .envmap import EnvMap
-from .jit import njit, prange
-from .errors import UsageError
-from .layouts import Sphere
+from ..maps import EnvMap
+from ..util.jit import njit, prange
+from ..util.errors import UsageError
+from ..maps.layouts import Sphere
 from .radiance import smooth_radiance, sphere_normals, view_frame
 from .radiancefile import RadianceSet
 
@@ -187,7 +187,7 @@ def _table_normals() -> np.ndarray:
 def smooth_table(smooth: EnvMap, brdf, frame: np.ndarray) -> np.ndarray:
     """S(T n_local; v) for the view of ``frame`` T (columns right, up, v) at the table's local normals
     (:func:`_table_normals`): (TABLE_SIZE, TABLE_SIZE, 3) radiance, from
-    :func:`lightprobe.radiance.smooth_radiance` of ``smooth`` (world frame)."""
+    :func:`lightprobe.glossy.radiance.smooth_radiance` of ``smooth`` (world frame)."""
     normals = _table_normals().reshape(-1, 3) @ np.asarray(frame).T
     return smooth_radiance(smooth, brdf, normals, frame[:, 2]).reshape(TABLE_SIZE, TABLE_SIZE, 3)
 
@@ -224,7 +224,7 @@ def _residuals(rset: RadianceSet, needed, exact: bool = False) -> np.ndarray:
 
 
 def map_at_normals(rmap: EnvMap, normals: np.ndarray) -> np.ndarray:
-    """A radiance map read at world ``normals`` (N, 3): the texel of local normal Tᵀ n (SPEC §4's normal-indexed
+    """A radiance map read at world ``normals`` (N, 3): the texel of local normal Tᵀ n (docs/spec.md §4's normal-indexed
     lookup; normals facing away from the map's view are read at its rim), bilinear. Radiance."""
     local = np.asarray(normals, dtype=np.float64).reshape(-1, 3) @ rmap.layout.camera_axes
     out = np.empty((len(local), 3))

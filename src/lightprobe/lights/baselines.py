@@ -1,7 +1,7 @@
 """The point-light baselines users reach for today, with solid-angle weighting: Debevec's median cut (2005) and
 Viriyothai & Debevec's variance minimisation (2009).
 
-Quantities as in :mod:`lightprobe.lights`: directions in the world frame, ``power`` RGB ∫L dω of the region a light
+Quantities as in :mod:`lightprobe.lights.decompose`: directions in the world frame, ``power`` RGB ∫L dω of the region a light
 stands for. The map is first resampled (energy-conservingly) to a lat-long working grid; its pixels' luminance ×
 solid angle go into summed-area tables, so every region's energy and every candidate cut is O(1) or O(side).
 
@@ -23,10 +23,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .envmap import EnvMap
-from .errors import UsageError
-from .layouts import LATLONG
-from .tonemap import luminance
+from ..maps import EnvMap
+from ..util.errors import UsageError
+from ..maps.layouts import LATLONG
+from ..maps.tonemap import luminance
 
 MAX_POINT_LIGHTS = 4096
 
@@ -42,7 +42,7 @@ class PointLight:
 
     @property
     def yaw_elevation_deg(self) -> tuple[float, float]:
-        from .lights import yaw_elevation_deg
+        from .decompose import yaw_elevation_deg
 
         return yaw_elevation_deg(self.direction)
 

@@ -1,7 +1,7 @@
-"""An environment map as circular area lights plus an ambient remainder (Arbree, Walter & Bala 2005; SPEC §5).
+"""An environment map as circular area lights plus an ambient remainder (Arbree, Walter & Bala 2005; docs/spec.md §5).
 
-Quantities: lights are in the **world frame** (SPEC §1: +Y up, front −Z). A light's ``power`` is ∫L dω over the
-pixels it took (RGB, radiance × steradians: the same unit as :meth:`lightprobe.envmap.EnvMap.integral`), its
+Quantities: lights are in the **world frame** (docs/spec.md §1: +Y up, front −Z). A light's ``power`` is ∫L dω over the
+pixels it took (RGB, radiance × steradians: the same unit as :meth:`lightprobe.maps.EnvMap.integral`), its
 ``radiance`` that power over its cap's solid angle. The ambient map is the original map, same layout and grid, with
 the lights' pixels set to zero — so Σ light power + ∫ ambient dω = ∫ original dω per channel, to float rounding.
 
@@ -22,17 +22,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import limits
-from .envmap import EnvMap, owned
-from .errors import UsageError
-from .jit import njit
-from .layouts import LATLONG
-from .tonemap import luminance
+from ..util import limits
+from ..maps import EnvMap, owned
+from ..util.errors import UsageError
+from ..util.jit import njit
+from ..maps.layouts import LATLONG
+from ..maps.tonemap import luminance
 
 
 @dataclass(frozen=True)
 class LightParams:
-    """The decomposition's parameters; the defaults are the paper's (SPEC §5)."""
+    """The decomposition's parameters; the defaults are the paper's (docs/spec.md §5)."""
 
     inner_ratio: float = 0.75  # r_i / r_o
     surround_weight: float = 10.0  # the annulus's weight is −surround_weight, the inner cap's +1
@@ -115,7 +115,7 @@ class Decomposition:
 
 
 def decompose(env: EnvMap, params: LightParams | None = None) -> Decomposition:
-    """Find the area lights of ``env`` (any layout) by the centre–surround search of SPEC §5 and return them with
+    """Find the area lights of ``env`` (any layout) by the centre–surround search of docs/spec.md §5 and return them with
     the ambient map. Deterministic; a map with nothing brighter than its surroundings gives no lights."""
     params = params or LightParams()
     params.check()
@@ -174,7 +174,7 @@ def decompose(env: EnvMap, params: LightParams | None = None) -> Decomposition:
 
 # ---- the working grid -----------------------------------------------------------------------------------------------
 def _working_grid(env: EnvMap, rows: int) -> EnvMap:
-    """The map resampled (energy-conservingly, :func:`lightprobe.envmap.resample`) to a lat-long of ``rows`` ×
+    """The map resampled (energy-conservingly, :func:`lightprobe.maps.resampling`) to a lat-long of ``rows`` ×
     2·rows — up as well as down: the smallest filter's inner cap (1.7° by default) must span several working
     pixels, or its sum counts one pixel or none and a uniform map shows spurious lights. A lat-long of that size
     is used as it is."""
@@ -184,7 +184,7 @@ def _working_grid(env: EnvMap, rows: int) -> EnvMap:
             (env.grid[0] // rows) & (env.grid[0] // rows - 1) == 0:
         # a power-of-two multiple: exact 2×2 solid-angle-weighted means (∫L dω kept to rounding), ~40× faster
         # than the general resampler's footprint integration, which it equals where the map is smooth
-        from .envmap.resampling import box_reduce
+        from ..maps.resampling.resampler import box_reduce
 
         while env.grid[0] > rows:
             env = box_reduce(env)
@@ -200,7 +200,7 @@ def _row_prefix(values: np.ndarray) -> np.ndarray:
 
 
 def _column_phi(cols: np.ndarray, w: int) -> np.ndarray:
-    """Azimuth of column centres, as :data:`lightprobe.layouts.LATLONG` maps them: φ = 2π((c + ½)/W − ½)."""
+    """Azimuth of column centres, as :data:`lightprobe.maps.layouts.LATLONG` maps them: φ = 2π((c + ½)/W − ½)."""
     return 2 * np.pi * ((np.asarray(cols) + 0.5) / w - 0.5)
 
 
@@ -223,7 +223,7 @@ def _candidates(rows_y: np.ndarray, fraction: float) -> tuple[np.ndarray, np.nda
 
 
 def _responses(prefix, theta, cand_rows, cand_cols, radii, inner, outer, weight, which, out) -> None:
-    """out[which] = R_k of SPEC §5 for the candidates ``which``: [I(r_i) − w (I(r_o) − I(r_i))] / (2 r_o)."""
+    """out[which] = R_k of docs/spec.md §5 for the candidates ``which``: [I(r_i) − w (I(r_o) − I(r_i))] / (2 r_o)."""
     if which.size == 0:
         return
     # by row, so each row's interval table is built once (stable: equal rows keep their order)
@@ -311,7 +311,7 @@ OUTLINE = np.array([0.1, 1.0, 0.2])  # display-encoded colour of a light's cap o
 def preview(env: EnvMap, lights: list[AreaLight], rows: int = 256) -> np.ndarray:
     """The probe as a tone-mapped lat-long image (rows × 2·rows, display-encoded float RGB in [0, 1]) with each
     light's cap outlined (the pixels within half a pixel of its radius) and its centre marked."""
-    from .tonemap import auto_exposure, tonemap
+    from ..maps.tonemap import auto_exposure, tonemap
 
     work = env.to(LATLONG, rows)
     display = tonemap(work.data, auto_exposure(work.data, work.solid_angles())).astype(np.float64)

@@ -1,6 +1,6 @@
 """Hybrid irradiance: the area lights integrated exactly over their pixels, plus SH of the ambient (no shadows).
 
-Quantities as in :mod:`lightprobe.irradiance`: E(n) is irradiance (not /π), normals world-frame unit vectors.
+Quantities as in :mod:`lightprobe.sh.irradiance`: E(n) is irradiance (not /π), normals world-frame unit vectors.
 
 Why it is accurate where SH alone is not: the lights hold the map's high frequencies (a sun is what makes SH9 ring
 and miss by tens of percent); what is left, the ambient, is smooth enough for a low order. Why it is fast: a light's
@@ -17,10 +17,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .envmap import EnvMap
-from .irradiance import ErrorReport, IrradianceMap, compare_irradiance, irradiance_map_of
-from .lights import Decomposition, LightParams, decompose
-from .sh import SHCoeffs, project
+from ..maps import EnvMap
+from ..sh.irradiance import ErrorReport, IrradianceMap, compare_irradiance, irradiance_map_of
+from .decompose import Decomposition, LightParams, decompose
+from ..sh.basis import SHCoeffs, project
 
 # The ambient's SH order by default: the least that keeps the hybrid within 1 % mean / 5 % max of brute force on
 # the eight probes of tests/test_hybrid.py (outdoor maps with a bright horizon need more than order 2: the horizon
@@ -51,7 +51,7 @@ class HybridIrradiance:
 
     def evaluate(self, normals: np.ndarray) -> np.ndarray:
         """Irradiance E (not /π) at world-frame unit normals (..., 3); returns (..., 3)."""
-        from .kernels import clamped_cosine_sums
+        from ..maps.lookups import clamped_cosine_sums
 
         normals = np.asarray(normals, dtype=np.float64)
         n = normals.reshape(-1, 3)
@@ -94,12 +94,12 @@ def hybrid_irradiance(env: EnvMap, decomposition: Decomposition | None = None,
 def hybrid_irradiance_map(env: EnvMap, target, size: int, ambient_order: int = DEFAULT_AMBIENT_ORDER,
                           hybrid: HybridIrradiance | None = None) -> IrradianceMap:
     """An irradiance map (E, not /π) of ``env`` by the hybrid, in layout ``target`` of ``size`` — the counterpart of
-    :func:`lightprobe.irradiance.irradiance_map` for ``method="hybrid"``."""
+    :func:`lightprobe.sh.irradiance.irradiance_map` for ``method="hybrid"``."""
     hybrid = hybrid or hybrid_irradiance(env, ambient_order=ambient_order)
     return irradiance_map_of(hybrid.evaluate, target, size, "hybrid")
 
 
 def hybrid_error_report(env: EnvMap, normals: np.ndarray, reference: np.ndarray, hybrid: HybridIrradiance
                         ) -> ErrorReport:
-    """Both error measures of SPEC §3 for the hybrid at ``normals``, against brute force ``reference`` (RGB)."""
+    """Both error measures of docs/spec.md §3 for the hybrid at ``normals``, against brute force ``reference`` (RGB)."""
     return compare_irradiance(env, hybrid.evaluate(normals), reference, hybrid.ambient.l_max, "none", "hybrid")

@@ -2,18 +2,18 @@
 
 Schema ``{"format": "lightprobe.lights", "version": 1, ...}``:
 
-* ``frame``: ``world`` (SPEC §1: +Y up, front −Z, right +X) — every direction below is in it;
+* ``frame``: ``world`` (docs/spec.md §1: +Y up, front −Z, right +X) — every direction below is in it;
 * ``lights``: in the order found, each ``direction`` (unit [x, y, z]), ``yaw_deg`` (0 at the front −Z, positive
   towards +X) and ``elevation_deg`` (above the horizon), ``angular_radius_deg``, ``solid_angle_sr`` of its cap
   (2π(1 − cos radius)), ``power`` (RGB ∫L dω over the pixels it took: radiance × sr, the unit of ``lightprobe
   info``'s integral), ``radiance`` (power / solid angle: the cap's mean RGB radiance) and ``response`` (the
   filter response that chose it);
 * ``ambient``: ``power`` (RGB ∫ ambient dω) and ``sh`` — the ambient map's **radiance** SH coefficients in lightprobe's
-  SH schema (:mod:`lightprobe.shfile`, world frame), to be used as SH irradiance for everything the lights do not
+  SH schema (:mod:`lightprobe.sh.shfile`, world frame), to be used as SH irradiance for everything the lights do not
   carry;
 * ``total_power`` (RGB ∫ map dω) and ``shares``: the fractions of the total luminance power in the lights and in
   the ambient (they sum to 1; Σ light power + ambient power = total power per channel, to float rounding);
-* ``parameters``: every parameter of the search (:class:`lightprobe.lights.LightParams`), ``method``
+* ``parameters``: every parameter of the search (:class:`lightprobe.lights.decompose.LightParams`), ``method``
   (``arbree2005``; or ``mediancut``, whose point lights have radius and solid angle 0, radiance and response null,
   and ``ambient`` null: they carry the whole map; its parameters are ``count`` and ``working_rows``);
 * ``timings`` (seconds) and ``source`` (the map, or null).
@@ -27,12 +27,12 @@ import math
 
 import numpy as np
 
-from .frames import WORLD
+from ..maps.frames import WORLD
 from .baselines import PointLight
-from .lights import Decomposition
-from .sh import SHCoeffs
-from .shfile import sh_document
-from .tonemap import luminance
+from .decompose import Decomposition
+from ..sh.basis import SHCoeffs
+from ..sh.shfile import sh_document
+from ..maps.tonemap import luminance
 
 FORMAT, VERSION = "lightprobe.lights", 1
 
@@ -99,10 +99,10 @@ class LightSet:
 
 
 def read_lights_json(text: str | bytes, what: str = "lights file") -> LightSet:
-    """The lights of a ``lightprobe.lights`` v1 document; every field the exports use is checked (one clear
-    :class:`~lightprobe.errors.InputError` otherwise). Directions are normalised; a radius must be within
+    """The lights of a ``lightprobe.lights.decompose`` v1 document; every field the exports use is checked (one clear
+    :class:`~lightprobe.util.errors.InputError` otherwise). Directions are normalised; a radius must be within
     0°..90°, powers finite and non-negative."""
-    from .shfile import read_sh_json, versioned_document
+    from ..sh.shfile import read_sh_json, versioned_document
 
     doc, fail = versioned_document(text, what, FORMAT, VERSION, MAX_BYTES)
     if doc.get("frame") != WORLD.name:

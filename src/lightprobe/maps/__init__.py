@@ -4,7 +4,7 @@ first use (PEP 562): reading a map and projecting it (``lightprobe sh``, ``info`
 kernels and tables took 27 ms of a 230 ms ``lightprobe sh`` (2048×1024 .exr)."""
 
 from .files import file_shape, from_image, read_envmap, to_image
-from .map import EnvMap, frozen_array, owned, pixel_geometry
+from .envmap import EnvMap, frozen_array, owned, pixel_geometry
 from .pixels import bad_pixel_counts, repair
 
 _RESAMPLING = ("MAX_FOOTPRINT_RATIO", "auto_samples", "box_reduce", "check_size", "link_kernels", "resample",
@@ -16,7 +16,7 @@ __all__ = ["EnvMap", "read_envmap", "from_image", "to_image", "file_shape", "pix
 
 def __getattr__(name: str):
     if name in _RESAMPLING:
-        from . import resampling
+        from .resampling import resampler as resampling
 
         return getattr(resampling, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,6 +1,6 @@
 """The :class:`EnvMap` type: an HDR environment map (linear RGB radiance) in one layout, world frame.
 
-Conventions: ``data`` is float32 of shape ``grid + (3,)`` (see :mod:`lightprobe.layouts`); the numbers are
+Conventions: ``data`` is float32 of shape ``grid + (3,)`` (see :mod:`lightprobe.maps.layouts`); the numbers are
 **radiance** (linear RGB, any consistent unit) arriving at the probe from each direction; directions are in the world
 frame (+Y up, front −Z). ``∫L dω`` is the per-channel integral of radiance over the sphere (units × sr).
 
@@ -18,10 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import LayoutError
-from ..frames import as_rotation
-from ..layouts import Layout, layout as layout_named
-from ..tonemap import luminance
+from ..util.errors import LayoutError
+from .frames import as_rotation
+from .layouts import Layout, layout as layout_named
+from .tonemap import luminance
 
 
 def frozen_array(a: np.ndarray) -> np.ndarray:
@@ -149,21 +149,21 @@ class EnvMap:
 
     # ---- transforms --------------------------------------------------------------------------------------------
     def to(self, layout: str | Layout, size: int | None = None, samples: int | None = None) -> EnvMap:
-        """This map in another layout (footprint-aware resampling, see :func:`lightprobe.envmap.resample`)."""
-        from .resampling import resample
+        """This map in another layout (footprint-aware resampling, see :func:`lightprobe.maps.resampling`)."""
+        from .resampling.resampler import resample
 
         return resample(self, layout_named(layout), size, samples=samples)
 
     def rotated(self, rotation, samples: int | None = None) -> EnvMap:
         """The environment turned by ``rotation`` (3×3 matrix or (yaw, pitch, roll) degrees, see
-        :func:`lightprobe.frames.rotation_from_ypr`): light that came from d now comes from R·d. Same layout."""
-        from .resampling import resample
+        :func:`lightprobe.maps.frames.rotation_from_ypr`): light that came from d now comes from R·d. Same layout."""
+        from .resampling.resampler import resample
 
         return resample(self, self.layout, self.size, rotation=as_rotation(rotation), samples=samples)
 
     def save(self, path: str | os.PathLike, **kwargs) -> Path:
         """Write to an image file (cube maps as a 6N × N strip); keyword arguments go to :func:`write_image`."""
-        from ..io import write_image
+        from .images import write_image
         from .files import to_image
 
         return write_image(path, to_image(self), **kwargs)

@@ -6,10 +6,10 @@ import os
 
 import numpy as np
 
-from ..errors import LayoutError
-from ..io import read_image
-from ..layouts import Layout, detect_layout, layout as layout_named
-from .map import EnvMap, owned
+from ..util.errors import LayoutError
+from .images import read_image
+from .layouts import Layout, detect_layout, layout as layout_named
+from .envmap import EnvMap, owned
 from .pixels import repair
 
 
@@ -65,8 +65,8 @@ def read_envmap_within_budget(path: str | os.PathLike, layout: str | Layout | No
     """:func:`read_envmap` after checking, from the file's header alone, that reading it plus
     ``working_bytes_per_pixel`` per pixel plus ``extra_bytes`` fits the memory budget (with numba's own memory when
     the work runs compiled ``kernels``): what every command and every batch worker reads a probe with."""
-    from ..io import image_header
-    from ..limits import check_memory
+    from .images import image_header
+    from ..util.limits import check_memory
 
     header = image_header(path)
     check_memory(header.read_bytes() + header.pixels * working_bytes_per_pixel + extra_bytes,

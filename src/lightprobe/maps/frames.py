@@ -1,7 +1,7 @@
 """Coordinate frames and rotations.
 
-**World frame** (SPEC §1): right-handed, +Y up, the *front* of a panorama is −Z, image right is +X. Every layout in
-:mod:`lightprobe.layouts` maps pixels to directions in this frame, so converting between layouts never mirrors or
+**World frame** (docs/spec.md §1): right-handed, +Y up, the *front* of a panorama is −Z, image right is +X. Every layout in
+:mod:`lightprobe.maps.layouts` maps pixels to directions in this frame, so converting between layouts never mirrors or
 rotates the scene.
 
 A :class:`Frame` is a named orthogonal 3×3 matrix ``to_frame`` with ``d_frame = to_frame @ d_world``. It may be a
@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import UsageError
+from ..util.errors import UsageError
 
 
 @dataclass(frozen=True)

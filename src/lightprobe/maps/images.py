@@ -1,22 +1,22 @@
 """Image files: read any HDR/LDR image as linear float32 RGB through OpenImageIO; write atomically and checked.
 
 Reading (:func:`read_image`) returns the pixels exactly as stored (no repair of NaN or negative values; that is
-:mod:`lightprobe.envmap`'s job), as an (H, W, 3) float32 array, row 0 at the top:
+:mod:`lightprobe.maps`'s job), as an (H, W, 3) float32 array, row 0 at the top:
 
 * Radiance ``.hdr`` (run-length or flat), OpenEXR (half or float; the R, G, B channels by name), ``.pfm``
   (opened with an empty ``ImageSpec`` so OpenImageIO does not flip its bottom-up rows), and any 8/16-bit image such
   as ``.png`` or ``.jpg``, whose sRGB encoding is decoded to linear.
 * One-channel images are repeated into grey RGB; alpha and other channels are dropped.
 * Only regular files are opened (a FIFO or a device would block or never end). The header is checked before any
-  pixel memory is allocated: the pixel limit and the memory budget of :mod:`lightprobe.limits` (a PNG of a few
+  pixel memory is allocated: the pixel limit and the memory budget of :mod:`lightprobe.util.limits` (a PNG of a few
   hundred kB can claim 16384×8192 pixels), and a file too short to hold what its header claims.
 * What the image libraries print on stderr (libpng's warnings, libjpeg's errors) is captured, never shown: a
   failure becomes one line, a success stays silent.
 
 Writing (:func:`write_image`) picks the format by extension: ``.exr`` (float32, or half with ``half=True``),
-``.hdr``, ``.pfm`` through OpenImageIO, and ``.png``/``.jpg`` (tone-mapped with :func:`lightprobe.tonemap.tonemap`)
+``.hdr``, ``.pfm`` through OpenImageIO, and ``.png``/``.jpg`` (tone-mapped with :func:`lightprobe.maps.tonemap.tonemap`)
 encoded in memory by Pillow — libjpeg, under OpenImageIO, ends the whole process when a write fails. Every write goes
-through :func:`lightprobe.files.atomic_path`: a temporary file, read back (HDR) or size-checked (LDR) before it is
+through :func:`lightprobe.util.files.atomic_path`: a temporary file, read back (HDR) or size-checked (LDR) before it is
 renamed over the target.
 """
 
@@ -34,9 +34,9 @@ from pathlib import Path
 import numpy as np
 import OpenImageIO as oiio
 
-from .errors import InputError, UsageError
-from .files import atomic_path, write_bytes
-from .limits import check_memory, check_pixels
+from ..util.errors import InputError, UsageError
+from ..util.files import atomic_path, write_bytes
+from ..util.limits import check_memory, check_pixels
 from .tonemap import srgb_decode, to_uint8, tonemap
 
 HDR_WRITE_FORMATS = (".exr", ".hdr", ".pfm")

@@ -1,8 +1,8 @@
-"""Environment-map layouts: pixels ↔ directions, exact per-pixel solid angles, validity masks (SPEC §2).
+"""Environment-map layouts: pixels ↔ directions, exact per-pixel solid angles, validity masks (docs/spec.md §2).
 
 Conventions shared by every layout:
 
-* Directions are unit vectors in the **world frame** (:mod:`lightprobe.frames`: +Y up, front −Z, right +X).
+* Directions are unit vectors in the **world frame** (:mod:`lightprobe.maps.frames`: +Y up, front −Z, right +X).
 * Pixels are stored in an array of shape ``grid + (3,)``: ``grid`` is ``(H, W)`` for the flat layouts and
   ``(6, N, N)`` for ``cube`` (faces +X, −X, +Y, −Y, +Z, −Z). Row 0 is the top row as displayed.
 * Continuous coordinates are ``(face, u, v)`` with ``u, v ∈ [0, 1]`` across the face (the whole image for flat
@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-from .errors import LayoutError
+from ..util.errors import LayoutError
 
 Grid = tuple[int, ...]
 PAD = 2  # border texels of padded images: enough for a cubic B-spline's 4×4 taps
@@ -148,7 +148,7 @@ class Layout(ABC):
         """A function ``d (..., 3) → values (..., C)``: lookup of ``data`` (``grid + (C,)``) at world directions,
         seam- and pole-correct. ``kernel``: ``bilinear``, or ``bspline`` (cubic B-spline, for resampling);
         ``prefilter``: as :meth:`padded`'s."""
-        from .kernels import gather  # numba is imported when a lookup is first built, not with the package
+        from .lookups import gather  # numba is imported when a lookup is first built, not with the package
 
         grid = data.shape[:-1]
         img, valid = self.padded(data, PAD, prefilter)
@@ -442,7 +442,7 @@ def _disc_solid_angles(layout: _DiscLayout, n: int) -> np.ndarray:
 
 
 class Angular(_DiscLayout):
-    """Debevec angular map: radius r ∝ angle from the front (−Z); centre → −Z, rim → +Z (SPEC §2)."""
+    """Debevec angular map: radius r ∝ angle from the front (−Z); centre → −Z, rim → +Z (docs/spec.md §2)."""
 
     name = "angular"
 
@@ -551,7 +551,7 @@ class Sphere(_DiscLayout):
 
 # ============================================================================================================ cubes
 # Each cube face is a signed permutation matrix A with  direction ∝ A · (s, t, 1),  s, t ∈ [−1, 1]  (s right, t down).
-# Its third column is the face's axis. Inverse: (s, t) = (Aᵀd)[:2] / (Aᵀd)[2]. Tables from SPEC §2, verbatim.
+# Its third column is the face's axis. Inverse: (s, t) = (Aᵀd)[:2] / (Aᵀd)[2]. Tables from docs/spec.md §2, verbatim.
 def _face(*rows) -> np.ndarray:
     return np.array(rows, dtype=np.float64)
 

@@ -2,7 +2,7 @@
 
 All kernels read a *padded* image ``img`` of shape (F, H + 2p, W + 2p, C) and its validity ``valid`` (same without
 C): the border of p texels holds the neighbouring pixels across seams and poles (see
-:meth:`lightprobe.layouts.Layout.padded`), so the kernels need no knowledge of layouts. Sample coordinates ``x, y``
+:meth:`lightprobe.maps.layouts.Layout.padded`), so the kernels need no knowledge of layouts. Sample coordinates ``x, y``
 are in padded pixel units (the centre of padded column c is x = c). Taps with ``valid == 0`` carry no weight and the
 remaining weights are renormalised, so a disc's black corners never bleed into it.
 """
@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .jit import import_numba, use_threads
+from ..util.jit import import_numba, use_threads
 
 numba = import_numba()
 njit, prange = numba.njit, numba.prange
-use_threads()  # LIGHTPROBE_THREADS, as for the kernels compiled through lightprobe.jit
+use_threads()  # LIGHTPROBE_THREADS, as for the kernels compiled through lightprobe.util.jit
 
 
 @njit(cache=True, parallel=True, fastmath=False)

@@ -6,7 +6,7 @@ import warnings
 
 import numpy as np
 
-from ..errors import LightprobeWarning
+from ..util.errors import LightprobeWarning
 
 
 def bad_pixel_counts(data: np.ndarray) -> dict[str, int]:

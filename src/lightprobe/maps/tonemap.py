@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import UsageError
-from .names import CURVES  # the names users type: numpy-free, for the command line
+from ..util.errors import UsageError
+from ..util.names import CURVES  # the names users type: numpy-free, for the command line
 
 MAX_EXPOSURE = 64
 

@@ -14,8 +14,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ..errors import LayoutError
-from ..tonemap import heatmap, luminance
+from ..util.errors import LayoutError
+from ..maps.tonemap import heatmap, luminance
 
 
 @dataclass(frozen=True)

@@ -20,7 +20,7 @@ import weakref
 
 import numpy as np
 
-from ..jit import njit, prange
+from ..util.jit import njit, prange
 
 PACKET = 16  # rays per rtcOccluded16 call
 # RTCRay16: twelve arrays of 16 four-byte lanes — org_x, org_y, org_z, tnear, dir_x, dir_y, dir_z, time, tfar,

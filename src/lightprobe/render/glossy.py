@@ -2,7 +2,7 @@
 
 Every method here shades a scene's glossy meshes (:attr:`Material.glossy`) by its own means and its Lambertian
 meshes exactly (brute-force irradiance, no shadows), so glossy and diffuse surfaces share one scene. No method
-casts shadows or interreflections (the radiance-map methods' assumption, SPEC §4): compare them with Mitsuba's
+casts shadows or interreflections (the radiance-map methods' assumption, docs/spec.md §4): compare them with Mitsuba's
 direct lighting of convex objects or read the difference as what they leave out.
 
 * ``direct`` — the exact radiance map for the camera's view (eye − target), read at each pixel's normal: the
@@ -12,7 +12,7 @@ direct lighting of convex objects or read the difference as what they leave out.
   ``per_pixel_view`` each pixel's own view blended from the three maps around it (removing the orthographic
   approximation).
 * ``splitsum`` — Karis 2013 as Filament and three.js do it: the environment prefiltered with the GGX lobe of the
-  material's α under n = v = r (:func:`lightprobe.prefilter.prefilter_cube`), read at the mirror direction, times
+  material's α under n = v = r (:func:`lightprobe.glossy.prefilter.prefilter_cube`), read at the mirror direction, times
   F0·A(n·v) + B(n·v), the DFG terms of the same GGX (F0 = the material's Fresnel at normal incidence, Schlick's
   curve from there). GGX materials only.
 """
@@ -21,13 +21,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..brdf import GGX, BRDF, Schlick, reflect
-from ..errors import UsageError
-from ..irradiance import brute_irradiance
-from ..prefilter import hammersley, prefilter_cube
-from ..radiance import check_views, geodesic_views, prepare, radiance_map
-from ..radiancefile import RadianceSet, radiance_set
-from ..rsibr import SMOOTH_MIN_LOBE, map_at_normals, reflected_by_view, synthesize
+from ..glossy.brdf import GGX, BRDF, Schlick, reflect
+from ..util.errors import UsageError
+from ..sh.irradiance import brute_irradiance
+from ..glossy.prefilter import hammersley, prefilter_cube
+from ..glossy.radiance import check_views, geodesic_views, prepare, radiance_map
+from ..glossy.radiancefile import RadianceSet, radiance_set
+from ..glossy.rsibr import SMOOTH_MIN_LOBE, map_at_normals, reflected_by_view, synthesize
 from .methods import Method, PerEnvironment
 
 DEFAULT_MAP_SIZE = 128
@@ -154,8 +154,8 @@ def dfg_terms(alpha: float, steps: int = DFG_STEPS, samples: int = DFG_SAMPLES) 
 def splitsum_cube(env, alpha: float, size: int):
     """The environment prefiltered with the GGX lobe of ``alpha`` under n = v = r, a ``size``² cube (radiance, world
     frame): the split sum's first factor (every mip level prefiltered with the same α; the finest is kept)."""
-    from ..envmap import EnvMap
-    from ..layouts import CUBE
+    from ..maps import EnvMap
+    from ..maps.layouts import CUBE
 
     levels = int(np.log2(size)) + 1
     return EnvMap(prefilter_cube(env, size, [alpha] * levels).levels[0], CUBE)

@@ -9,7 +9,7 @@ sample budget, so a render is reproducible bit for bit from its seed.
   every normal.
 * ``brute`` — exact irradiance at the shading normal, integrating every pixel of the map. Also no shadows: it is
   the exact value of what ``sh`` approximates, so their difference is SH's own error.
-* ``hybrid`` — the map's area lights summed exactly plus SH of the ambient (:mod:`lightprobe.hybrid`). No shadows.
+* ``hybrid`` — the map's area lights summed exactly plus SH of the ambient (:mod:`lightprobe.lights.hybrid`). No shadows.
 * ``lights`` — Arbree, Walter & Bala 2005: the ambient as SH irradiance plus each area light integrated over its
   disc (uniform radiance: power / solid angle) with ``light_samples`` stratified shadow rays per shading point —
   soft penumbrae. With ``ao`` the ambient is shadowed too (beyond the paper, whose §5 names that as its weakness):
@@ -26,15 +26,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..baselines import check_count, median_cut, variance_minimisation
-from ..brdf import tangent_frame
-from ..errors import UsageError
-from ..hybrid import DEFAULT_AMBIENT_ORDER, hybrid_irradiance
-from ..irradiance import brute_irradiance
-from ..lights import LightParams, decompose
-from ..radiance import prepare, reflected_radiance
-from ..sh import SHCoeffs, project
-from ..tonemap import luminance
+from ..lights.baselines import check_count, median_cut, variance_minimisation
+from ..glossy.brdf import tangent_frame
+from ..util.errors import UsageError
+from ..lights.hybrid import DEFAULT_AMBIENT_ORDER, hybrid_irradiance
+from ..sh.irradiance import brute_irradiance
+from ..lights.decompose import LightParams, decompose
+from ..glossy.radiance import prepare, reflected_radiance
+from ..sh.basis import SHCoeffs, project
+from ..maps.tonemap import luminance
 from .raycast import Hits, Tracer
 from .scene import Scene
 
@@ -106,7 +106,7 @@ class SHMethod(Method):
 
 class BruteMethod(Method):
     """Exact irradiance at every pixel's normal by summing the whole map (no shadows); on a glossy material the
-    exact reflected radiance toward each pixel's own view (:func:`lightprobe.radiance.reflected_radiance`)."""
+    exact reflected radiance toward each pixel's own view (:func:`lightprobe.glossy.radiance.reflected_radiance`)."""
 
     name = "brute"
     glossy = True
@@ -263,7 +263,7 @@ VISIBILITY_ROWS = 32  # the ambient's brightness map that weights occlusion rays
 
 def _visibility_map(ambient) -> np.ndarray:
     """The ambient's luminance on a small lat-long (energy-conserving resampling: a blurred copy), for weighting."""
-    from ..layouts import LATLONG
+    from ..maps.layouts import LATLONG
 
     small = ambient.to(LATLONG, VISIBILITY_ROWS)
     return np.ascontiguousarray(np.maximum(luminance(small.data.astype(np.float64)), 0.0))

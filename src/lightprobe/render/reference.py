@@ -26,10 +26,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..envmap import EnvMap
-from ..errors import LightprobeError, UsageError
-from ..io import write_image
-from ..layouts import LATLONG
+from ..maps import EnvMap
+from ..util.errors import LightprobeError, UsageError
+from ..maps.images import write_image
+from ..maps.layouts import LATLONG
 from .renderer import Rendering
 from .scene import MeshInstance, Scene
 
@@ -112,7 +112,7 @@ def mitsuba_bsdf(mesh: MeshInstance, folder: Path, index: int) -> dict:
     channel), GGX without Fresnel (f0 = 1) as ``roughconductor`` with ``material: none`` (Mitsuba's perfect
     reflector), the plastic as ``roughplastic`` (GGX, α, interior index, diffuse reflectance). Others have no Mitsuba
     equivalent with the same formula, and are refused rather than approximated."""
-    from ..brdf import GGX, Conductor, Lambert, Plastic, Schlick
+    from ..glossy.brdf import GGX, Conductor, Lambert, Plastic, Schlick
 
     brdf = mesh.material.brdf
     if brdf is None:
@@ -182,7 +182,7 @@ SCENE_FOLDER = re.compile(r"^lightprobe-mitsuba-(\d+)-")  # the pid of the run t
 
 def _sweep_stale_folders() -> None:
     """Remove scene folders of earlier runs that died before removing theirs (a crash inside Mitsuba, kill -9)."""
-    from ..files import sweep_stale_temporaries
+    from ..util.files import sweep_stale_temporaries
 
     sweep_stale_temporaries(Path(tempfile.gettempdir()), SCENE_FOLDER)
 
@@ -217,7 +217,7 @@ def reference_render(scene: Scene, spp: int = 64, global_illumination: bool = Fa
     process instead of raising). The scene's files live in a temporary folder only while Mitsuba loads them."""
     import os
 
-    from ..limits import check_memory
+    from ..util.limits import check_memory
 
     if not 1 <= spp <= 1 << 16:
         raise LightprobeError("reference samples per pixel must be within 1..65536")

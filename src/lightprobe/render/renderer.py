@@ -11,8 +11,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import BudgetError, UsageError
-from ..limits import check_memory, max_triangles
+from ..util.errors import BudgetError, UsageError
+from ..util.limits import check_memory, max_triangles
 from .methods import Method
 from .raycast import Tracer
 from .scene import Scene
@@ -43,7 +43,7 @@ def render_memory(width: int, height: int, spp: int, triangles: int) -> int:
 
 def render(scene: Scene, method: Method, spp: int = 1, tracer: Tracer | None = None) -> Rendering:
     """Render ``scene`` lit by ``method``; ``spp`` is the per-axis supersampling (spp² samples per pixel). The
-    estimated memory is checked against the budget (:mod:`lightprobe.limits`) before any ray is cast."""
+    estimated memory is checked against the budget (:mod:`lightprobe.util.limits`) before any ray is cast."""
     if not 1 <= spp <= 16:
         raise UsageError("spp must be within 1..16")
     if scene.triangle_count > max_triangles():

@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from ..jit import njit, prange
+from ..util.jit import njit, prange
 from .embree import PACKET, blocked, packet, put_ray, trace
 
 CHUNKS = 256  # the threads share the points in this many strided sets (each allocates its packet and buffers once)

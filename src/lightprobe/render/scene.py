@@ -1,7 +1,7 @@
 """Scenes: meshes with diffuse materials, an optional ground plane, a pinhole camera, and an environment map as the
 only light (visible as the background). Scene files are read by :mod:`lightprobe.render.scenefile`.
 
-Conventions: world frame of :mod:`lightprobe.frames` (+Y up, the default camera looks along −Z). Lengths are in the
+Conventions: world frame of :mod:`lightprobe.maps.frames` (+Y up, the default camera looks along −Z). Lengths are in the
 meshes' own units. Every mesh is checked when it is made — after loading and after every transform — so a NaN
 scale or fit can never make geometry silently vanish.
 """
@@ -14,12 +14,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..brdf import BRDF
-from ..envmap import EnvMap
-from ..errors import BudgetError, InputError, LightprobeError, short
-from ..frames import as_rotation
-from ..io import check_regular_file
-from ..limits import max_triangles
+from ..glossy.brdf import BRDF
+from ..maps import EnvMap
+from ..util.errors import BudgetError, InputError, LightprobeError, short
+from ..maps.frames import as_rotation
+from ..maps.images import check_regular_file
+from ..util.limits import max_triangles
 
 
 @dataclass(frozen=True)
@@ -70,7 +70,7 @@ class Camera:
 @dataclass(frozen=True)
 class Material:
     """Lambertian reflectance ``albedo`` (linear RGB) or ``texture`` (linear RGB image, looked up at the mesh UVs),
-    unless ``brdf`` names another BRDF (a :class:`lightprobe.brdf.BRDF`, e.g. GGX gold): then the surface is that
+    unless ``brdf`` names another BRDF (a :class:`lightprobe.glossy.brdf.BRDF`, e.g. GGX gold): then the surface is that
     BRDF, and only the methods that shade glossy surfaces (``brute``, and the Mitsuba reference) can render it."""
 
     albedo: tuple[float, float, float] = (0.8, 0.8, 0.8)
@@ -82,7 +82,7 @@ class Material:
         if a.shape != (3,) or not np.isfinite(a).all() or (a < 0).any() or (a > 1).any():
             raise LightprobeError(f"albedo must be three numbers in [0, 1], got {short(self.albedo)}")
         if self.brdf is not None and not isinstance(self.brdf, BRDF):
-            raise LightprobeError(f"a material's brdf must be a lightprobe.brdf.BRDF, got {short(self.brdf)}")
+            raise LightprobeError(f"a material's brdf must be a lightprobe.glossy.brdf.BRDF, got {short(self.brdf)}")
 
     @property
     def glossy(self) -> bool:
@@ -172,7 +172,7 @@ def load_mesh(path: str | os.PathLike, material: Material = Material()) -> MeshI
     if uv is not None and material.texture is None:
         image = getattr(getattr(loaded.visual, "material", None), "image", None)
         if image is not None:
-            from ..tonemap import srgb_decode
+            from ..maps.tonemap import srgb_decode
 
             texture = srgb_decode(np.asarray(image.convert("RGB"), dtype=np.float32) / 255.0)
     mat = replace(material, texture=texture if texture is not None else material.texture)
@@ -267,7 +267,7 @@ KEY_LIGHT_AZIMUTH = -135.0  # behind the default camera, on its left: lit fronts
 
 def key_light_azimuth(env: EnvMap) -> float:
     """Azimuth φ (degrees; 0 = front −Z, 90 = +X) of the pixel carrying the most light (luminance × solid angle)."""
-    from ..tonemap import luminance
+    from ..maps.tonemap import luminance
 
     power = luminance(env.data) * env.solid_angles()
     d = env.directions()[np.unravel_index(np.argmax(power), power.shape)]

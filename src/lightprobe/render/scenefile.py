@@ -18,7 +18,7 @@ its lowest point on the ground plane; then ``scale`` and ``translate`` apply. Al
 [0, 1]; ``texture`` (an image file) with the mesh's UVs overrides it. ``material`` makes the surface another BRDF: a
 mapping with its name and parameters (``{brdf: ggx, alpha: 0.2, conductor: gold}``, ``{brdf: ggx, alpha: 0.1,
 eta: [0.2, 0.9, 1.1], k: [3.9, 2.5, 2.1]}``) or the same as text (``ggx:alpha=0.2,conductor=gold``; see
-:func:`lightprobe.brdf.parse_brdf`).
+:func:`lightprobe.glossy.brdf.parse_brdf`).
 
 Top-level keys starting with ``_`` are ignored: a place for YAML anchors (``_white: &white {albedo: [1, 1, 1]}``).
 Every field is checked for its type and range (:data:`RANGES`), unknown fields are refused (a typo is not silently
@@ -36,12 +36,11 @@ import os
 from dataclasses import replace
 from pathlib import Path
 
-from ..envmap import EnvMap, read_envmap
-from ..errors import BudgetError, InputError, UsageError, short
-from ..io import check_regular_file, read_image
-from ..limits import max_triangles
-from .scene import (SPHERE_TRIANGLES, TORUS_TRIANGLES, Camera, Material, MeshInstance, Scene, fitted,
-                    ground_plane, load_mesh, sphere, torus, transformed)
+from ..maps import EnvMap, read_envmap
+from ..util.errors import BudgetError, InputError, UsageError, short
+from ..maps.images import check_regular_file, read_image
+from ..util.limits import max_triangles
+from .scene import SPHERE_TRIANGLES, TORUS_TRIANGLES, Camera, Material, MeshInstance, Scene, fitted, ground_plane, load_mesh, sphere, torus, transformed
 
 MAX_FILE_BYTES = 16 << 20
 MAX_NODES = 200_000
@@ -191,8 +190,8 @@ MESH_FIELDS = {"file", "shape", "albedo", "texture", "material", "radius", "cent
 
 def _brdf(spec, where: str):
     """``material: {brdf: ggx, alpha: 0.2, conductor: gold}`` (or the spec text ``ggx:alpha=0.2,conductor=gold``)
-    as a BRDF; numbers, r/g/b lists and names as :func:`lightprobe.brdf.parse_brdf` takes them."""
-    from ..brdf import parse_brdf
+    as a BRDF; numbers, r/g/b lists and names as :func:`lightprobe.glossy.brdf.parse_brdf` takes them."""
+    from ..glossy.brdf import parse_brdf
 
     if isinstance(spec, str):
         text = spec

@@ -1,4 +1,4 @@
-"""Real spherical harmonics in Ramamoorthi & Hanrahan's convention (SPEC §3), any order.
+"""Real spherical harmonics in Ramamoorthi & Hanrahan's convention (docs/spec.md §3), any order.
 
 Convention (stated once, used everywhere):
 
@@ -10,7 +10,7 @@ Convention (stated once, used everywhere):
 * Flat index i = l(l+1) + m: L00, L1−1, L10, L11, L2−2, L2−1, L20, L21, L22, …
 * Quantities: ``radiance`` coefficients L_lm of the environment, or ``irradiance`` coefficients E_lm = Â_l L_lm
   (E(n) = Σ E_lm Y_lm(n), irradiance at a surface with normal n; **not** divided by π). Engine pre-scaled forms
-  live in :mod:`lightprobe.export`.
+  live in :mod:`lightprobe.exports.sh`.
 """
 
 from __future__ import annotations
@@ -22,12 +22,12 @@ from math import comb, factorial, pi, sqrt
 
 import numpy as np
 
-from .jit import njit, prange, worth_compiling
-from .envmap import EnvMap
-from .errors import UsageError
-from .frames import WORLD, Frame, frame as frame_named
-from .layouts import LatLong
-from .names import WINDOWS  # the names users type: numpy-free, for the command line
+from ..util.jit import njit, prange, worth_compiling
+from ..maps import EnvMap
+from ..util.errors import UsageError
+from ..maps.frames import WORLD, Frame, frame as frame_named
+from ..maps.layouts import LatLong
+from ..util.names import WINDOWS  # the names users type: numpy-free, for the command line
 
 QUANTITIES = ("radiance", "irradiance")
 
@@ -138,7 +138,7 @@ def _series(d, coeffs, a, b, pmm_step, out):  # pragma: no cover - compiled
 
 def series(l_max: int, d: np.ndarray, coeffs: np.ndarray) -> np.ndarray:
     """Σ_lm coeffs[lm] Y_lm(d), shape d.shape[:-1] + coeffs.shape[1:]: ``basis(l_max, d) @ coeffs``, by a compiled
-    kernel above order 2 where that is worth loading numba for (:func:`lightprobe.jit.worth_compiling`; 6× faster
+    kernel above order 2 where that is worth loading numba for (:func:`lightprobe.util.jit.worth_compiling`; 6× faster
     than numpy's basis matrix and product at order 12, 47k points: 21 against 132 ms), else by numpy."""
     d = np.asarray(d, dtype=np.float64)
     coeffs = np.asarray(coeffs, dtype=np.float64)
@@ -152,7 +152,7 @@ def series(l_max: int, d: np.ndarray, coeffs: np.ndarray) -> np.ndarray:
 
 
 def normalisation(l: int, m: int) -> float:
-    """N_lm = √((2l+1)/(4π) · (l−|m|)!/(l+|m|)!) (SPEC §3)."""
+    """N_lm = √((2l+1)/(4π) · (l−|m|)!/(l+|m|)!) (docs/spec.md §3)."""
     m = abs(m)
     return sqrt((2 * l + 1) / (4 * pi) * factorial(l - m) / factorial(l + m))
 
@@ -197,7 +197,7 @@ def transform_matrix(l_max: int, q: np.ndarray) -> np.ndarray:
 
     Each band block is solved exactly from Y_l(Qᵀ d) = D_l Y_l(d) at well-spread directions: band l is closed under
     O(3), so the system is consistent and least squares returns the exact matrix (to ~1e-13); this is the
-    "equivalent exact method" SPEC §1 allows in place of the Ivanic–Ruedenberg recurrence, and it needs no sign
+    "equivalent exact method" docs/spec.md §1 allows in place of the Ivanic–Ruedenberg recurrence, and it needs no sign
     bookkeeping for mirrors.
     """
     q = np.asarray(q, dtype=np.float64)
@@ -282,7 +282,7 @@ class SHCoeffs:
         return replace(self, coeffs=self.coeffs * a_hat_per_coefficient(self.l_max)[:, None], quantity="irradiance")
 
     def to_frame(self, target: str | Frame) -> SHCoeffs:
-        """The same function stated in another frame (SPEC §1: world → rh2001 negates L10, L2−1, L21, …)."""
+        """The same function stated in another frame (docs/spec.md §1: world → rh2001 negates L10, L2−1, L21, …)."""
         target = frame_named(target)
         q = target.to_frame @ self.frame.to_frame.T  # this frame → target frame
         if np.array_equal(q, np.eye(3)):  # the same axes (world and three.js, say): exact, no least-squares round-off
@@ -624,7 +624,7 @@ def project(env: EnvMap, l_max: int = 2, frame: str | Frame = WORLD, fast: bool 
     Lat-long maps are separable: per-row azimuthal sums, then per-row Legendre weights (one pass over the pixels,
     O(S·l_max) work). The row sums come from compiled kernels (above order 2 they need W divisible by 4) or, with
     ``compiled`` False, from numpy matrix products; ``compiled`` None takes the kernels when numba is already
-    loaded or the map is big enough to repay loading it (:func:`lightprobe.jit.worth_compiling`). Every other map
+    loaded or the map is big enough to repay loading it (:func:`lightprobe.util.jit.worth_compiling`). Every other map
     evaluates the basis at its pixel directions. All compute the same sum (to float64 rounding).
     """
     if not isinstance(l_max, (int, np.integer)) or l_max < 0:

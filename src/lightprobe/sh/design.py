@@ -12,9 +12,9 @@ import re
 import numpy as np
 import OpenImageIO as oiio
 
-from .errors import LightprobeError
-from .sh import SHCoeffs, basis, degree_order, n_coeffs, name
-from .tonemap import tonemap
+from ..util.errors import LightprobeError
+from .basis import SHCoeffs, basis, degree_order, n_coeffs, name
+from ..maps.tonemap import tonemap
 
 _EDIT = re.compile(r"^L(\d+)(-?\d+)=(.+)$")
 MAX_VALUE = 1e9  # |coefficient| an edit may set

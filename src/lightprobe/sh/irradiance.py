@@ -11,12 +11,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import UsageError
-from .envmap import EnvMap
-from .layouts import Layout, layout as layout_named
-from .progress import track
-from .sh import SHCoeffs, _sample_directions, project
-from .tonemap import luminance
+from ..util.errors import UsageError
+from ..maps import EnvMap
+from ..maps.layouts import Layout, layout as layout_named
+from ..util.progress import track
+from .basis import SHCoeffs, _sample_directions, project
+from ..maps.tonemap import luminance
 
 # Paper eq. 12 constants, exactly: each is Â_l times a basis normalisation (0.429043, 0.511664, 0.743125, 0.886227,
 # 0.247708 as printed).
@@ -33,7 +33,7 @@ def brute_irradiance(env: EnvMap, normals: np.ndarray, chunk: int = 4096) -> np.
 
     A compiled kernel sums all pixels with light for each normal (float32 products, float64 totals: ~1e-7
     relative); normals go in chunks so long runs show progress."""
-    from .kernels import clamped_cosine_sums  # numba loads with the first kernel, not with the package
+    from ..maps.lookups import clamped_cosine_sums  # numba loads with the first kernel, not with the package
 
     normals = np.asarray(normals, dtype=np.float64)
     n = np.ascontiguousarray(normals.reshape(-1, 3))
@@ -129,8 +129,8 @@ def irradiance_map_of(irradiance, target: str | Layout, size: int, method: str) 
 # ---- error analysis -------------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class ErrorReport:
-    """An irradiance method against brute force on luminance, over normals spread uniformly on the sphere (SPEC §3):
-    SH of order ``l_max`` with ``window`` (method ``sh``), or the hybrid of :mod:`lightprobe.hybrid` (lights exact,
+    """An irradiance method against brute force on luminance, over normals spread uniformly on the sphere (docs/spec.md §3):
+    SH of order ``l_max`` with ``window`` (method ``sh``), or the hybrid of :mod:`lightprobe.lights.hybrid` (lights exact,
     ambient SH of order ``l_max``)."""
 
     l_max: int

@@ -3,7 +3,7 @@
 Schema ``{"format": "lightprobe.sh", "version": 2, ...}``:
 
 * ``quantity``: ``radiance`` (L_lm) or ``irradiance`` (E_lm = Â_l L_lm, not divided by π);
-* ``frame`` (a name of :data:`lightprobe.frames.FRAMES`) and ``frame_description``: the frame whose +z the basis is
+* ``frame`` (a name of :data:`lightprobe.maps.frames.FRAMES`) and ``frame_description``: the frame whose +z the basis is
   built about;
 * ``basis``: real SH without the Condon–Shortley phase, flat index l(l+1)+m (fixed text);
 * ``window``: the de-ringing window applied (``none``, ``lanczos(3)``, …); ``l_max``; ``names`` (L00, L1-1, …);
@@ -19,9 +19,9 @@ import json
 
 import numpy as np
 
-from .errors import InputError
-from .frames import FRAMES, WORLD, Frame
-from .sh import QUANTITIES, SHCoeffs, n_coeffs, name
+from ..util.errors import InputError
+from ..maps.frames import FRAMES, WORLD, Frame
+from .basis import QUANTITIES, SHCoeffs, n_coeffs, name
 
 FORMAT, VERSION = "lightprobe.sh", 2
 BASIS = "real SH, no Condon-Shortley phase, flat index l(l+1)+m (Ramamoorthi & Hanrahan 2001)"
@@ -44,7 +44,7 @@ def sh_json(sh: SHCoeffs, frame: Frame = WORLD, source: str | None = None) -> st
 
 def versioned_document(text: str | bytes, what: str, fmt: str, version: int, max_bytes: int):
     """The JSON object of a ``{"format": fmt, "version": version, …}`` document and a ``fail(reason)`` that raises
-    the one-line :class:`~lightprobe.errors.InputError` "cannot read <what>: <reason>" (shared by lightprobe's
+    the one-line :class:`~lightprobe.util.errors.InputError` "cannot read <what>: <reason>" (shared by lightprobe's
     readers)."""
     def fail(reason: str):
         raise InputError(f"cannot read {what}: {reason}")

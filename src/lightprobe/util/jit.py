@@ -49,7 +49,7 @@ def import_numba():
 
 
 def use_threads() -> None:
-    """numba's kernels run on :func:`lightprobe.limits.threads` threads (at most the pool numba started with)."""
+    """numba's kernels run on :func:`lightprobe.util.limits.threads` threads (at most the pool numba started with)."""
     numba = import_numba()
 
     from .limits import threads
@@ -120,7 +120,7 @@ def dispatcher(fn):
 
 
 # numba links even a cached kernel with LLVM, which leaves ~70 MiB of libllvmlite.so's pages resident for the rest of
-# the process: a fifth of a 4k map's convert (3.35× the map with them, issue 9 asks 3×). They are clean pages of the
+# the process: a fifth of a 4k map's convert (3.35× the map with them; the bound is 3×). They are clean pages of the
 # library's file — its code and constants, never written — so this process may unmap them (MADV_DONTNEED) and have any
 # it touches again read back from the file. Only read-only mappings with no privately modified (Anonymous) page are
 # touched: a library's relocated data (RELRO) is read-only too, but was written, and is left alone.

@@ -3,19 +3,19 @@
 Every quantity keeps the convention of the module that made it; the manifest ``bake.json`` says which:
 
 * ``sh`` — the probe's nine **radiance** coefficients L_lm (world frame, real SH without the Condon–Shortley phase,
-  :mod:`lightprobe.sh`); the page forms eq. 12's matrices from them itself, so the sliders can edit L_lm.
-* ``threejs.json`` — the ``threejs`` export (:func:`lightprobe.export.export_threejs`, in the frame three.js shows
+  :mod:`lightprobe.sh.basis`); the page forms eq. 12's matrices from them itself, so the sliders can edit L_lm.
+* ``threejs.json`` — the ``threejs`` export (:func:`lightprobe.exports.sh.export_threejs`, in the frame three.js shows
   an equirectangular background in): what the page hands three.js's own ``LightProbe``.
-* ``lights.json`` — the area lights and ambient SH (:mod:`lightprobe.lightsfile`, world frame); ``ambient.f32`` the
+* ``lights.json`` — the area lights and ambient SH (:mod:`lightprobe.lights.lightsfile`, world frame); ``ambient.f32`` the
   ambient's **irradiance** E(n) (SH of :data:`AMBIENT_ORDER`) on a latlong grid indexed by the normal.
 * ``radiance-K.f32`` — BRDF K's radiance maps L_r(n; v_i) at the geodesic views (sphere layout, frames
-  :func:`lightprobe.radiance.view_frame`), **radiance**; ``prefiltered-K.f32`` the split sum's GGX-prefiltered
+  :func:`lightprobe.glossy.radiance.view_frame`), **radiance**; ``prefiltered-K.f32`` the split sum's GGX-prefiltered
   environment (radiance, latlong) with its DFG table in the manifest.
 * ``background.f32`` — the probe itself (radiance, latlong), ``mesh.glb`` — the objects (world units, fitted as the
   renderer's scenes are) and the ground plane, and ``camera`` — the renderer's default camera for that scene.
 
 Binary arrays are little-endian float32, C order, RGB last; latlong rows run from the top (+Y) down, the world
-frame's convention (:class:`lightprobe.layouts.LatLong`). Bakes are cached by the inputs' content and options
+frame's convention (:class:`lightprobe.maps.layouts.LatLong`). Bakes are cached by the inputs' content and options
 (:func:`cache_folder`) and written atomically: a folder there is complete or absent.
 """
 
@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import BudgetError, UsageError
+from ..util.errors import BudgetError, UsageError
 
 FORMAT, VERSION = "lightprobe.view", 1
 BACKGROUND_WIDTH = 1024
@@ -59,13 +59,13 @@ class BakeOptions:
 
 
 def max_triangles() -> int:
-    from ..limits import positive_env
+    from ..util.limits import positive_env
 
     return positive_env("LIGHTPROBE_VIEW_MAX_TRIANGLES", DEFAULT_MAX_TRIANGLES)
 
 
 def max_pixels() -> int:
-    from ..limits import positive_env
+    from ..util.limits import positive_env
 
     return positive_env("LIGHTPROBE_VIEW_MAX_PIXELS", DEFAULT_MAX_PIXELS)
 
@@ -73,7 +73,7 @@ def max_pixels() -> int:
 def check_inputs(probe: Path, mesh: Path | None) -> None:
     """Refuse, with one line and before any baking, a probe or mesh beyond the viewer's limits (set by
     ``LIGHTPROBE_VIEW_MAX_PIXELS`` and ``LIGHTPROBE_VIEW_MAX_TRIANGLES``)."""
-    from ..io import image_header
+    from ..maps.images import image_header
 
     header = image_header(probe)
     if header.pixels > max_pixels():
@@ -88,7 +88,7 @@ def check_inputs(probe: Path, mesh: Path | None) -> None:
 
 def mesh_triangle_count(path: Path) -> int:
     """Triangles in a mesh file, read from its header where the format has one (PLY), else by loading it."""
-    from ..io import check_regular_file
+    from ..maps.images import check_regular_file
 
     check_regular_file(path, "mesh")
     if path.suffix.lower() == ".ply":
@@ -107,7 +107,7 @@ def mesh_triangle_count(path: Path) -> int:
 
 def cache_folder(probe: Path, mesh: Path | None, options: BakeOptions, root: Path | None = None) -> Path:
     """``root``/<key>: the key hashes the probe's and the mesh's bytes, the options and the format's version."""
-    from ..files import digest_file
+    from ..util.files import digest_file
 
     digest = hashlib.sha256(f"{FORMAT} {VERSION} {options.key()}".encode())
     for path in (probe, mesh):
@@ -138,7 +138,7 @@ def _write_array(folder: Path, name: str, data: np.ndarray) -> dict:
 
 def _background(env, width: int) -> np.ndarray:
     """The probe as a latlong of at most ``width`` × ``width``/2 (energy-conserving resampling), radiance."""
-    from ..layouts import LATLONG
+    from ..maps.layouts import LATLONG
 
     if env.layout == LATLONG and env.data.shape[1] <= width:
         return env.data
@@ -147,8 +147,8 @@ def _background(env, width: int) -> np.ndarray:
 
 def _latlong_directions(rows: int, cols: int) -> np.ndarray:
     """The pixel-centre directions of a rows × cols latlong, (rows · cols, 3)."""
-    from ..envmap.map import pixel_directions
-    from ..layouts import LATLONG
+    from ..maps.envmap import pixel_directions
+    from ..maps.layouts import LATLONG
 
     return pixel_directions(LATLONG, (rows, cols)).reshape(-1, 3)
 
@@ -184,10 +184,10 @@ def _camera(scene) -> dict:
 
 
 def _lights(env, folder: Path, params: dict) -> dict:
-    from ..hybrid import DEFAULT_AMBIENT_ORDER
-    from ..lights import LightParams, decompose
-    from ..lightsfile import lights_json
-    from ..sh import project
+    from ..lights.hybrid import DEFAULT_AMBIENT_ORDER
+    from ..lights.decompose import LightParams, decompose
+    from ..lights.lightsfile import lights_json
+    from ..sh.basis import project
 
     dec = decompose(env, LightParams(**params) if params else None)
     ambient = project(dec.ambient, DEFAULT_AMBIENT_ORDER)  # as the renderer's ``lights`` method
@@ -200,9 +200,9 @@ def _lights(env, folder: Path, params: dict) -> dict:
 
 
 def _brdf_part(env, lighting, spec: str, index: int, options: BakeOptions, folder: Path) -> dict:
-    from ..brdf import GGX, parse_brdf
-    from ..radiance import geodesic_views
-    from ..radiancefile import radiance_set
+    from ..glossy.brdf import GGX, parse_brdf
+    from ..glossy.radiance import geodesic_views
+    from ..glossy.radiancefile import radiance_set
     from ..render.glossy import dfg_terms, normal_reflectance, splitsum_cube
 
     brdf = parse_brdf(spec)
@@ -231,9 +231,9 @@ def bake(env, folder: Path, mesh: Path | None = None, options: BakeOptions = Bak
     """Bake everything the page needs for ``env`` (and ``mesh``, or the built-in scene) into ``folder``, atomically
     (a temporary folder beside it, renamed into place). Returns the manifest."""
     from .. import __version__
-    from ..export import export_threejs
-    from ..radiance import prepare
-    from ..sh import project
+    from ..exports.sh import export_threejs
+    from ..glossy.radiance import prepare
+    from ..sh.basis import project
 
     folder = Path(folder)
     temp = folder.parent / f".{folder.name}.tmp-{os.getpid()}"
@@ -271,7 +271,7 @@ def bake(env, folder: Path, mesh: Path | None = None, options: BakeOptions = Bak
 
 def check_brdfs(specs) -> tuple[str, ...]:
     """The BRDF specs, each parsed once so a bad one is refused before any work."""
-    from ..brdf import parse_brdf
+    from ..glossy.brdf import parse_brdf
 
     out = []
     for spec in specs:

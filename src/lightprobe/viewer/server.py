@@ -5,8 +5,8 @@ answers GET and HEAD (any other method 405), lists no folder, and serves only
 
 * ``/`` — the page (``index.html``, made from the template in ``static/`` with its Content-Security-Policy),
 * ``/static/NAME`` — the page's own files (the files in ``static/``, fixed when the server starts),
-* ``/modules/three/…`` — the three.js modules the page imports (resolved from the pinned npm package at start:
-  a fixed list, so nothing else of ``node_modules`` is reachable),
+* ``/modules/three/…`` — the three.js modules the page imports (the package's own copy, made at build time from
+  the pinned npm package: a fixed list of files),
 * ``/bake/…`` — regular files inside the bake folder, reached without ``..``, ``.``-prefixed or empty segments
   (after percent-decoding), backslashes or NUL, and whose real path (symlinks followed) stays inside the folder.
 
@@ -27,7 +27,7 @@ import threading
 from pathlib import Path
 from urllib.parse import unquote
 
-from ..errors import LightprobeError, UsageError
+from ..util.errors import LightprobeError, UsageError
 
 STATIC = Path(__file__).resolve().parent / "static"
 ENTRY_MODULES = ("build/three.module.js", "examples/jsm/controls/OrbitControls.js",
@@ -39,13 +39,16 @@ _IMPORT = re.compile(r"""(?:from|import)\s*['"](\.{1,2}/[^'"]+)['"]""")
 _IMPORTMAP = re.compile(r'<script type="importmap">(.*?)</script>', re.S)
 
 
-def three_root() -> Path:
-    from ..engines import ENGINES
+VENDOR = Path(__file__).resolve().parent / "vendor" / "three"
 
-    root = ENGINES / "node_modules" / "three"
-    if not (root / "build" / "three.module.js").is_file():
-        raise LightprobeError(f"the viewer needs three.js from npm ({root} is missing): run 'bash setup.sh'")
-    return root
+
+def three_root() -> Path:
+    """The three.js modules inside the package (``viewer/vendor/three``): the wheel carries them, copied at build
+    time from the npm version the repository pins; a development checkout gets them from ``bash setup.sh``."""
+    if not (VENDOR / "build" / "three.module.js").is_file():
+        raise LightprobeError(f"this installation lacks the viewer's three.js modules ({VENDOR}): install the "
+                              "lightprobe wheel, or run 'bash setup.sh' in a checkout")
+    return VENDOR
 
 
 def module_files(root: Path) -> list[str]:

@@ -1,7 +1,7 @@
 """A cube source's texel balance: the pre-filter after which each texel's B-spline carries exactly its solid angle.
 
 The resampler reads a cube map through a cubic B-spline on each face, the face's 2-texel padding filled from its
-neighbours (:meth:`lightprobe.layouts.Layout.padded`). What a texel j gives to ∫L dω of the reconstruction is the
+neighbours (:meth:`lightprobe.maps.layouts.Layout.padded`). What a texel j gives to ∫L dω of the reconstruction is the
 integral over the sphere of its basis — its spline on its own face plus its copies in the neighbours' padding —
 I_j. For a conversion to keep the energy of a one-texel sun, I_j must be the texel's solid angle Ω_j. It is not
 quite, and the error is the source's, whatever the target:
@@ -33,9 +33,9 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..jit import njit
+from ...util.jit import njit
 from ..layouts import CUBE, PAD, Cross, Layout, _padding_index
-from .map import pixel_solid_angles
+from ..envmap import pixel_solid_angles
 from .pole_rows import bspline
 
 MIN_SIZE = 2 * PAD  # smaller cubes have no padding corner blocks (layouts._cube_corner_blocks): left as they are

@@ -1,7 +1,7 @@
 """Lat-long → cube faces through the cube's symmetries: one footprint computed, up to eight target pixels read.
 
 An unturned lat-long source and a cube target share symmetries that the general kernel
-(:func:`lightprobe.envmap.fused.resample_into`) recomputes for every pixel:
+(:func:`lightprobe.maps.resampling.fused.resample_into`) recomputes for every pixel:
 
 - a quarter turn of yaw carries the −Z face onto −X, +Z and +X, and moves a lat-long by W/4 columns — exactly, when
   W is a multiple of 4: the four side faces' footprints are one footprint whose columns are shifted;
@@ -23,9 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..jit import njit
-from .fused import (CUBE, KERNEL_FASTMATH, LATLONG, TILE, _cube_edge_terms, _polar_tile, _row_frame, _subsamples,
-                    _sum_into_tile, _tile_bounds, atan2, _wrapped_column, pixel_into, slots)
+from ...util.jit import njit
+from .fused import CUBE, KERNEL_FASTMATH, LATLONG, TILE, _cube_edge_terms, _polar_tile, _row_frame, _subsamples, _sum_into_tile, _tile_bounds, atan2, _wrapped_column, pixel_into, slots
 
 # The side faces as images of −Z (face 5) under quarter turns of yaw: (face, turns); a turn is +W/4 columns.
 SIDE_FACES = np.array([[5, 0], [0, 1], [4, 2], [1, 3]], dtype=np.int64)
@@ -50,7 +49,7 @@ def _modulo(c, width):  # pragma: no cover - compiled
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _base_tile(levels, caps, h, w, pxs, pys, pws, n, scratch, tile):  # pragma: no cover - compiled
-    """The footprint tile of n subsamples, as :func:`lightprobe.envmap.fused._footprint` builds it:
+    """The footprint tile of n subsamples, as :func:`lightprobe.maps.resampling.fused._footprint` builds it:
     (kind, first column, first row, columns, rows) — kind NO_TILE when it cannot hold them."""
     c0, r0, tw, th = _tile_bounds(pxs, pys, n, 0)
     if th > TILE:
@@ -101,7 +100,7 @@ def _read_plain(src, h, w, c0, r0, tw, th, tile, shift, mirror, acc):  # pragma:
 @njit(cache=True, inline="always", error_model="numpy")
 def _read_polar(src, levels, reduced, row_offsets, h, w, r0, th, tile, scratch, shift, mirror,
                 acc):  # pragma: no cover - compiled
-    """:func:`_read_plain` for a tile of per-row frames (:func:`lightprobe.envmap.fused._polar_tile`); False,
+    """:func:`_read_plain` for a tile of per-row frames (:func:`lightprobe.maps.resampling.fused._polar_tile`); False,
     touching nothing, if ``shift`` is not a whole number of a reduced row's columns."""
     for ty in range(th):
         width = _row_frame(levels, h, w, r0 + ty)[2]
@@ -161,9 +160,9 @@ def _back_columns(n, k, w):  # pragma: no cover - compiled
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _back_subsamples(row, col, n, k, h, w, columns, eye, latlong, pfs, pxs, pys, pws):  # pragma: no cover - compiled
-    """:func:`lightprobe.envmap.fused._subsamples` for a pixel of the −Z face into an unturned lat-long, the
+    """:func:`lightprobe.maps.resampling.fused._subsamples` for a pixel of the −Z face into an unturned lat-long, the
     azimuths from :func:`_back_columns`: one atan2 a subsample instead of two, the same values and order (the
-    edge terms too, :func:`lightprobe.envmap.fused._cube_edge_terms`)."""
+    edge terms too, :func:`lightprobe.maps.resampling.fused._cube_edge_terms`)."""
     m, wsum = 0, 0.0
     for j in range(k):
         t = 2.0 * ((row + (j + 0.5) / k) / n) - 1.0
@@ -235,7 +234,7 @@ def cube_rows_into(src, levels, reduced, row_offsets, caps, n, k, kinds, poles, 
     """Fill rows ``first`` … ``last − 1`` of ``out`` (6, R, n, 3) float32 — image rows ``top + first`` … of the
     faces of an n-texel cube (+X, −X, +Y, −Y, +Z, −Z): the side faces, and +Y and −Y if ``poles`` — from the
     unpadded lat-long ``src`` (1, H, W, 3), W a multiple of 4, unturned, at k × k subsamples; ``levels`` …
-    ``caps`` are its polar reductions as for :func:`lightprobe.envmap.fused.resample_into`, whose values these are
+    ``caps`` are its polar reductions as for :func:`lightprobe.maps.resampling.fused.resample_into`, whose values these are
     (to float32 rounding); ``kinds`` is :func:`_kinds`. A side pixel has 8 images (4 faces × the mirror), a pixel
     of +Y or −Y 2 (the mirror) within a row.
 

@@ -1,13 +1,13 @@
 """A conversion's flux correction: the pre-filter after which a sun in any source pixel keeps its energy exactly.
 
 A resampling is linear: a sun wholly in source pixel j reaches the target as column j of the weights, and its energy
-there is D_j = Σ_t Ω_t W_tj (:func:`lightprobe.envmap.resampling.delivered`). It should be the pixel's solid angle Ω_j.
-What is left between the two after the texel balance (:mod:`lightprobe.envmap.balance`) is the target's quadrature:
+there is D_j = Σ_t Ω_t W_tj (:func:`lightprobe.maps.resampling.resampler.delivered`). It should be the pixel's solid angle Ω_j.
+What is left between the two after the texel balance (:mod:`lightprobe.maps.resampling.balance`) is the target's quadrature:
 k×k subsamples per target pixel sum a spline that is not constant over the pixel — a cube's corner texels seen from
 a lat-long of 32 rows (2.4 %), a disc target's coarse pixels (1.8 %), the rings where the per-pixel rate steps
 (0.2–0.4 %), a lat-long's pixels read by the 20–40° rim rings of a 16–32-pixel disc (0.26–0.74 %). It depends on
 the pair of grids, so it is measured for the pair, and the source is pre-filtered so that every pixel's effective
-delivery is Ω_j (which conversions are: :func:`lightprobe.envmap.resampling._flux_corrects`):
+delivery is Ω_j (which conversions are: :func:`lightprobe.maps.resampling.resampler._flux_corrects`):
 
     x'_p = x_p + Σ_q w_pq (x_q − x_p),   w_pq ≥ 0 on the grid's edges (and a cube's seams), Σ_q w_pq < 1.
 
@@ -21,7 +21,7 @@ pair's capacity min(D_p, D_q); a block's children are then blocks of the next le
 edge belongs to one level, the work is a few passes over the pixels, and the result is exact to float rounding. A
 cube's faces first exchange their totals over their seams (a 6-node Laplacian). Every pixel is corrected, a disc
 source's to its rim direction (one direction spread over rings of pixels, which the conversion reads round that
-direction: :data:`lightprobe.envmap.fused.SOURCE_RIM_MARK`; an angular source's pixels within 20° of it were once left
+direction: :data:`lightprobe.maps.resampling.fused.SOURCE_RIM_MARK`; an angular source's pixels within 20° of it were once left
 alone, up to 3000 % off, as read they were too uneven for the flow). Weights stay small: 0.5–4 % at
 the worst pixel at the sizes maps are converted at (benchmarks/bench_energy.py --part flux), up to 30 % for 20-pixel
 mirror balls; over 50 % only for a few dozen pixels by a rim direction (up to 95 % in a mirror ball's outer

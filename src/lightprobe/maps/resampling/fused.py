@@ -1,16 +1,16 @@
 """The resampler's compiled kernel: every target pixel's k×k footprint lookups in one pass, no whole-grid temporaries.
 
-:func:`resample_into` does what the numpy formulation in :mod:`lightprobe.envmap.resampling` describes — per target
+:func:`resample_into` does what the numpy formulation in :mod:`lightprobe.maps.resampling.resampler` describes — per target
 pixel, k×k stratified subsamples, each weighted by the target's ``dω/(du dv)`` and looked up in the source with a
 cubic B-spline, the weighted mean stored — but it computes each subsample's direction, weight and source
 coordinates in registers instead of as float64 grids, so its memory is the output alone and its time is linear in
-the target's pixels. The per-layout formulas below are the same as :mod:`lightprobe.layouts`' forward/inverse pairs,
+the target's pixels. The per-layout formulas below are the same as :mod:`lightprobe.maps.layouts`' forward/inverse pairs,
 written for one direction at a time (``tests/test_resample.py`` checks them against those pairs and the whole kernel
 against the numpy path, to float32 rounding).
 
 Layout codes: 0 latlong, 1 cube (faces +X, −X, +Y, −Y, +Z, −Z, OpenGL), 2 angular, 3 sphere (camera axes ``axes``).
 A latlong source is read unpadded (columns wrap; a row past a pole is the row at the other side of it, half a turn
-round); other sources are read from their padded image (:meth:`lightprobe.layouts.Layout.padded`).
+round); other sources are read from their padded image (:meth:`lightprobe.maps.layouts.Layout.padded`).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from ..jit import njit
+from ...util.jit import njit
 from .pole_rows import FACTORS as POLE_FACTORS, TIER_HEIGHTS as POLE_TIER_HEIGHTS, TIER_REACH as POLE_REACH
 
 # The kernels' floating-point licences, one set for all: fused multiply-adds, reciprocals, no signed zeros and
@@ -150,7 +150,7 @@ def _turned(x, y, z, rotation):  # pragma: no cover - compiled
 @njit(cache=True, inline="always", error_model="numpy")
 def source_position(kind, axes, x, y, z, h, w):  # pragma: no cover - compiled
     """(face, column, row) continuous pixel coordinates (centre of column c is c) of direction (x, y, z), which
-    need not be unit length. Total, like :meth:`lightprobe.layouts.Layout.dir_to_uv`."""
+    need not be unit length. Total, like :meth:`lightprobe.maps.layouts.Layout.dir_to_uv`."""
     if kind == LATLONG:
         u = atan2(x, -z) / (2.0 * math.pi) + 0.5
         v = atan2(math.sqrt(x * x + z * z), y) / math.pi
@@ -218,7 +218,7 @@ def _reflected_row(row, h):  # pragma: no cover - compiled
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _pole_tier(h):  # pragma: no cover - compiled
-    """The tier of :data:`lightprobe.envmap.pole_rows.TIERS` a latlong of h rows takes (−1: plain B-spline)."""
+    """The tier of :data:`lightprobe.maps.resampling.pole_rows.TIERS` a latlong of h rows takes (−1: plain B-spline)."""
     for t in range(POLE_TIER_HEIGHTS.size):
         if h >= POLE_TIER_HEIGHTS[t]:
             return t
@@ -236,7 +236,7 @@ def _pole_factor(row, h, tier):  # pragma: no cover - compiled
 @njit(cache=True, inline="always", error_model="numpy")
 def _pole_rows4(r0, h, b0, b1, b2, b3):  # pragma: no cover - compiled
     """The y weights of latlong tap rows r0 … r0 + 3, made rational where a row is near a pole (a_j B_j / Σ a_m
-    B_m, :mod:`lightprobe.envmap.pole_rows`: each row keeps its ∫ dω; the plain B-spline over-counts the first
+    B_m, :mod:`lightprobe.maps.resampling.pole_rows`: each row keeps its ∫ dω; the plain B-spline over-counts the first
     row by 25 %), unchanged elsewhere and in maps under pole_rows.MIN_HEIGHT rows."""
     tier = _pole_tier(h)
     if tier < 0:
@@ -255,7 +255,7 @@ def _lookup_latlong(src, levels, reduced, offsets, x, y, wx, wy, acc):  # pragma
     """B-spline lookup of an unpadded latlong image (1, H, W, 3) at pixel coordinates (x, y), added to ``acc``.
 
     Row r of level ``levels[r]`` = ℓ > 0 is read from its azimuthal box reduction (``reduced[offsets[r]:]``,
-    W / 2^ℓ pixels of 2^ℓ columns each; see :func:`lightprobe.envmap.polar.reduced_rows`), at its own column
+    W / 2^ℓ pixels of 2^ℓ columns each; see :func:`lightprobe.maps.resampling.polar.reduced_rows`), at its own column
     coordinate (x + ½) / 2^ℓ − ½: each row is interpolated on its own grid, with the rows' weights in y as ever."""
     h, w = src.shape[1], src.shape[2]
     fy = math.floor(y)
@@ -361,7 +361,7 @@ def _sum_into_tile(tile, pxs, pys, pws, n, scale, c0, r0, tw, th, pad):  # pragm
 def _in_frame(x, level, width, w, shift):  # pragma: no cover - compiled
     """Source column coordinate x (column c's centre at c) in a row's frame: its reduction level, to ``width``
     columns of the source's ``w`` (a frame column is w / width source columns: 2^ℓ, the same bits as before
-    where that is whole, or not, :func:`lightprobe.envmap.polar.reduced_width`), and half-turn shift."""
+    where that is whole, or not, :func:`lightprobe.maps.resampling.polar.reduced_width`), and half-turn shift."""
     if level == 0:
         return x + shift
     return (x + 0.5) * (width / w) - 0.5 + shift
@@ -369,7 +369,7 @@ def _in_frame(x, level, width, w, shift):  # pragma: no cover - compiled
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _reduced_width(w, level):  # pragma: no cover - compiled
-    """:func:`lightprobe.envmap.polar.reduced_width`, compiled: W / 2^ℓ, rounded where it is not whole."""
+    """:func:`lightprobe.maps.resampling.polar.reduced_width`, compiled: W / 2^ℓ, rounded where it is not whole."""
     return (w + ((1 << level) >> 1)) >> level
 
 
@@ -618,7 +618,7 @@ def _source_step(tgt_kind, tgt_axes, face, u0, v0, u1, v1, rotation, src_kind, s
     """How far apart, in source pixels, the source positions of target points (u0, v0) and (u1, v1) land. On a
     cube the second is placed on the first one's face plane, extended past its edge if need be (a step across an
     edge is still a step). A lat-long's columns count at their width, sin θ of a column: nearer a pole the polar
-    reductions (:mod:`lightprobe.envmap.polar`) serve, not more lookups. No step (0) when either point lies off a
+    reductions (:mod:`lightprobe.maps.resampling.polar`) serve, not more lookups. No step (0) when either point lies off a
     disc target: both would show its rim direction, rim-clamped, and a disc source places that direction anywhere
     on its own rim as rounding falls — a mirror ball into a mirror ball gave such points steps of 0 to 30 pixels,
     whose rates then graded their valid neighbours' cells (:func:`_pixel_rates`) differently from kernel to kernel,
@@ -936,7 +936,7 @@ def _arc_cuts(r, a0, a1, b0, b1, centre, lo, hi, cuts):  # pragma: no cover - co
 @njit(cache=True, inline="always", error_model="numpy")
 def _quadrant_area(x, y, r):  # pragma: no cover - compiled
     """Signed area of the rectangle between (0, 0) and (x, y) inside the disc of radius ``r`` round the origin: r² ×
-    :func:`lightprobe.layouts._quarter_disc_area` at (x/r, y/r), written again for one point in compiled code."""
+    :func:`lightprobe.maps.layouts._quarter_disc_area` at (x/r, y/r), written again for one point in compiled code."""
     a, b = min(abs(x) / r, 1.0), min(abs(y) / r, 1.0)
     x_star = math.sqrt(max(1.0 - b * b, 0.0))  # where the unit circle crosses height b
     lo = min(a, x_star)
@@ -1568,7 +1568,7 @@ def resample_into(src_kind, src, valid, levels, reduced, row_offsets, caps, src_
     one face, face-major: line = face·H + row, H = ``tgt_h``), from ``src``: unpadded (1, H, W, 3) for a latlong
     source, else the padded (F, H+4, W+4, 3) image with its ``valid`` taps. A latlong source's polar rows may be
     read from their azimuthal reductions (``levels``, ``reduced``, ``row_offsets``, ``caps``: see
-    :func:`_lookup_latlong` and :mod:`lightprobe.envmap.polar`). Unless ``all_valid``, ``tgt_valid``
+    :func:`_lookup_latlong` and :mod:`lightprobe.maps.resampling.polar`). Unless ``all_valid``, ``tgt_valid``
     (F, H, W) uint8 says which target pixels cover the sphere (the rest are 0). ``rotation`` R: the target at d
     shows the source at Rᵀd. k × k subsamples a pixel, or up to ``k_max`` × ``k_max`` where the pixel's footprint
     is long (:func:`_rates`). Lines are independent, so a caller can fill a map in bands or stream it in strips.
@@ -1728,7 +1728,7 @@ def footprint_delivery(src_kind, src_shape, valid, index_map, levels, row_offset
     weighted by its solid angle ``omega_t`` (flat over lines first …; a pixel whose weight is 0 is skipped)
     — the energy a sun in every source pixel at once takes there, without listing the taps. A ``base`` past the
     source's pixels and a short ``total`` keep a span of a latlong's reduced polar rows alone
-    (:mod:`lightprobe.envmap.polar_balance`); a disc source's rim taps ignore both (0 and all for those)."""
+    (:mod:`lightprobe.maps.resampling.polar_balance`); a disc source's rim taps ignore both (0 and all for those)."""
     h, w = tgt_h, tgt_w
     m = slots(k_max)
     pfs, pxs, pys, pws = np.empty(m, np.int64), np.empty(m), np.empty(m), np.empty(m)

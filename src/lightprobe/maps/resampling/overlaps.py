@@ -2,8 +2,8 @@
 
 A cell of the new partition takes each old cell's value in proportion to the length they share, so each old cell's
 content is shared out whole (a sun keeps its energy) and a constant stays constant. Used where a lat-long's size
-is not a power of two times what a reduction needs: an odd height halved (:func:`lightprobe.envmap.resampling.
-_odd_box_reduce`), a polar row of W = 2 × odd columns reduced to W / 2^ℓ rounded (:mod:`lightprobe.envmap.polar`).
+is not a power of two times what a reduction needs: an odd height halved (:func:`lightprobe.maps.resampling.resampler.
+_odd_box_reduce`), a polar row of W = 2 × odd columns reduced to W / 2^ℓ rounded (:mod:`lightprobe.maps.resampling.polar`).
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ apart is read from its box reduction in azimuth — 2^ℓ neighbouring columns a
 width's last whole halving, W / 2^ℓ rounded, each the mean of the columns it overlaps) — with ℓ the least that
 brings the lookups within :data:`MAX_SPACING` reduced columns. All pixels of a row have the same
 solid angle, so the reduction keeps the row's ∫L dω exactly and a uniform row uniform; the kernel interpolates each
-row on its own grid (:func:`lightprobe.envmap.fused._lookup_latlong`). Only rows within the polar caps
+row on its own grid (:func:`lightprobe.maps.resampling.fused._lookup_latlong`). Only rows within the polar caps
 (|cos θ| ≥ :data:`CAP_COS`) are reduced: elsewhere a row is wider than any sane target's pixel, and a mirror ball's
 rim — whose pixels are long arcs anywhere — must not blur the equator.
 
@@ -27,7 +27,7 @@ import numpy as np
 
 from dataclasses import dataclass
 
-from ..jit import njit
+from ...util.jit import njit
 from ..layouts import Layout
 from . import pole_rows
 
@@ -48,7 +48,7 @@ SAMPLES = 16_000  # target pixels sampled (every stride-th) to measure the looku
 def no_reduction(rows: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(levels, reduced, row_offsets, caps) for a source of ``rows`` rows read as it is (the kernel reads a
     latlong's level for every row it looks up: ``rows`` must be its height). The caps still cover the rows with
-    rational weights (:mod:`lightprobe.envmap.pole_rows`), which only the per-row path applies."""
+    rational weights (:mod:`lightprobe.maps.resampling.pole_rows`), which only the per-row path applies."""
     caps = np.full(2, pole_rows.reach(rows), np.int64)
     return np.zeros(rows, np.int64), np.zeros((1, 3), np.float32), np.zeros(rows, np.int64), caps
 
@@ -57,7 +57,7 @@ def reduced_width(width: int, level):
     """Columns of a row of ``width`` reduced to ``level`` ℓ (an int, or an array of them): W / 2^ℓ, rounded to the
     nearest whole number where it is not one (W = 2 × odd for a lat-long of odd height). Such a row's reduced
     columns each cover W / W_ℓ source columns — not a whole number — and are the exact means of the columns they
-    overlap (:func:`lightprobe.envmap.overlaps.column_means`)."""
+    overlap (:func:`lightprobe.maps.resampling.overlaps.column_means`)."""
     return (width + ((1 << level) >> 1)) >> level
 
 
@@ -206,7 +206,7 @@ def kernel_levels(levels: np.ndarray, width: int) -> np.ndarray:
 def row_layout(levels: np.ndarray, width: int) -> tuple[np.ndarray, np.ndarray, int]:
     """Where each reduced row sits: (row_offsets (H,), caps (2,), total reduced pixels); ``caps`` is how many rows
     at the north and south ends the reduced rows — or the rows with rational weights near the poles
-    (:mod:`lightprobe.envmap.pole_rows`) — reach: plain footprint tiles stay clear of them."""
+    (:mod:`lightprobe.maps.resampling.pole_rows`) — reach: plain footprint tiles stay clear of them."""
     h = levels.size
     levels = kernel_levels(levels, width)
     widths = np.where(levels > 0, reduced_width(width, levels), 0)

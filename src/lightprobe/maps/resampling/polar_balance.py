@@ -1,6 +1,6 @@
 """A lat-long source's coarsest polar rows, balanced: every reduced cell of such a row delivers its row's mean.
 
-Rows by a pole are read from their box reductions in azimuth (:mod:`lightprobe.envmap.polar`), down to 4 cells
+Rows by a pole are read from their box reductions in azimuth (:mod:`lightprobe.maps.resampling.polar`), down to 4 cells
 (8 where a row is reduced by overlaps), through a periodic B-spline over the cells. A cell's basis then spans a
 quarter to a half of the circle, and a sun in that cell reaches the target through all of it: what it delivers is
 that basis summed over the target's subsamples round the pole, and a turned target's subsamples are not spread
@@ -8,18 +8,18 @@ evenly in azimuth there (a cube's pixel grid seen from the pole, its rates stepp
 out unequal while the rows' means held: lat-long 2048×1024 → a cube of 300 turned (30°, 40°, 50°), row 0 of 4 cells
 +0.74 / −0.65 % against a mean of +0.045 %; 2098×1049 → a turned cube of 20, a row of 8 cells +0.22 %.
 
-The balance is the flux correction's difference form (:mod:`lightprobe.envmap.flux`) on a ring of cells: each
+The balance is the flux correction's difference form (:mod:`lightprobe.maps.resampling.flux`) on a ring of cells: each
 balanced cell's value is blended with its neighbours', v'_c = v_c + r_c (v_{c+1} − v_c) + l_c (v_{c−1} − v_c),
 r, l ≥ 0, so part of what cell c delivers moves to the neighbour it reads. On a ring the flows that bring every
 cell to the row's mean delivery are fixed up to one constant, chosen to make the largest flow least; a uniform row
 stays uniform and a positive one positive. What is left is each row's mean, which the rational pole rows hold
-(:mod:`lightprobe.envmap.pole_rows`).
+(:mod:`lightprobe.maps.resampling.pole_rows`).
 
 The deliveries are measured where they arise: on the target pixels whose footprints can reach the balanced rows
 (:func:`near_pole`, blocks of target pixels by their corners' angle to the source's pole; the compiled adjoint
 skips the rest), so the balance costs a small part of the conversion. A flux-corrected conversion needs none (its
 correction makes each source pixel exact), nor one that reads the source's rows as they are
-(:mod:`lightprobe.envmap.separable`), nor an unturned one: its target is symmetric about the source's poles there
+(:mod:`lightprobe.maps.resampling.separable`), nor an unturned one: its target is symmetric about the source's poles there
 (2048×1024 → cubes of 50–591, 1049 rows → cube 80, → lat-long 300: weights under 0.03 %, no pixel's gain moved in
 the fourth decimal of a percent), and measuring would load the adjoint's compiled code for nothing (5–15 MB at the
 peak of a 4k map's convert, over the 3× the map tests/test_limits.py holds).
@@ -47,7 +47,7 @@ SPLINE_ROWS = 2  # source rows a B-spline lookup reaches past its own row
 @dataclass(frozen=True)
 class CellBalance:
     """Blend weights of the balanced cells, by flat index into a lat-long's reduced polar rows (as
-    :func:`lightprobe.envmap.polar.reduced_rows` lays them out): cell ``cells[i]`` reads ``after[i]`` (the next
+    :func:`lightprobe.maps.resampling.polar.reduced_rows` lays them out): cell ``cells[i]`` reads ``after[i]`` (the next
     cell of its ring) with weight ``right[i]`` and ``before[i]`` with ``left[i]`` (float32)."""
 
     cells: np.ndarray
@@ -77,7 +77,7 @@ class CellBalance:
 
 
 def balanced_rows(found: np.ndarray, width: int) -> np.ndarray:
-    """Source rows (int64, in order) whose reduced cells are balanced, from :func:`lightprobe.envmap.polar.
+    """Source rows (int64, in order) whose reduced cells are balanced, from :func:`lightprobe.maps.resampling.polar.
     polar_levels` ``found``: reduced to at most :data:`MAX_CELLS` cells, and not read as their whole row's mean."""
     deepest = polar.max_level(width)
     rows = np.flatnonzero((found > 0) & (found <= deepest))

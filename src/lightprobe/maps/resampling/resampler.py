@@ -10,13 +10,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import LayoutError, UsageError
+from ...util.errors import LayoutError, UsageError
 from ..layouts import CUBE, LATLONG, Cross, Layout
-from .. import limits
-from ..limits import check_memory, check_pixels
-from ..progress import track
+from ...util import limits
+from ...util.limits import check_memory, check_pixels
+from ...util.progress import track
 from . import balance, cube_symmetry, flux, fused, polar, polar_balance, pole_rows, separable
-from .map import EnvMap, owned, pixel_directions, pixel_solid_angles
+from ..envmap import EnvMap, owned, pixel_directions, pixel_solid_angles
 from .overlaps import column_means, interval_overlaps
 
 _CHUNK_SAMPLES = 1 << 18  # direction lookups per chunk of a resampling pass (bounds memory to ~100 MB)
@@ -77,7 +77,7 @@ SPHERE_MIN_SIDE = 128
 
 def _reducible(layout: Layout, grid: tuple[int, ...]) -> bool:
     """Whether a box reduction may halve a source of this layout and grid: even sides, at least 8 pixels, a
-    lat-long keeps the rational pole rows (:data:`lightprobe.envmap.pole_rows.MIN_HEIGHT`: a sun in a pole row of
+    lat-long keeps the rational pole rows (:data:`lightprobe.maps.resampling.pole_rows.MIN_HEIGHT`: a sun in a pole row of
     a source halved under 48 rows gained 22 % of its energy; a tiny target reads the 48 rows with more subsamples
     instead), and a mirror ball keeps :data:`SPHERE_MIN_SIDE` pixels."""
     h, w = grid[-2:]
@@ -155,11 +155,11 @@ def resample(
     :func:`supersampling`), so ∫L dω is conserved (to ~0.1 % even for a sun of one pixel) and a uniform map stays
     exactly uniform; sources with over 16 pixels per target pixel are first box-reduced (exactly
     energy-preserving), and a latlong source's polar rows are read from their reductions in azimuth where the
-    lookups would skip columns (:mod:`lightprobe.envmap.polar`), with rational spline weights in the rows next to
-    the poles so each row keeps its solid angle (:mod:`lightprobe.envmap.pole_rows`). ``rotation`` R turns the
+    lookups would skip columns (:mod:`lightprobe.maps.resampling.polar`), with rational spline weights in the rows next to
+    the poles so each row keeps its solid angle (:mod:`lightprobe.maps.resampling.pole_rows`). ``rotation`` R turns the
     environment: the target at direction d shows the source at Rᵀd. The work is one compiled pass
-    (:mod:`lightprobe.envmap.fused`) whose memory is the output; an unturned lat-long into a cube reads each
-    footprint for its images under the cube's symmetries (:mod:`lightprobe.envmap.cube_symmetry`).
+    (:mod:`lightprobe.maps.resampling.fused`) whose memory is the output; an unturned lat-long into a cube reads each
+    footprint for its images under the cube's symmetries (:mod:`lightprobe.maps.resampling.cube_symmetry`).
     """
     plan = _plan(source, target, size, rotation, samples)
     if plan is None:
@@ -176,7 +176,7 @@ def resample_strips(source: EnvMap, target: Layout, size: int | None = None, *, 
     map. Crosses (whose tiles are turned) and layouts the kernel does not know come as one strip."""
     plan = _plan(source, target, size, rotation, samples)
     if plan is None or (isinstance(target, Cross) and not target.rows_are_face_rows()):
-        from .files import to_image
+        from ..files import to_image
 
         image = to_image(resample(source, target, size, rotation=rotation, samples=samples))
         return image.shape[:2], iter([(0, image)])
@@ -206,7 +206,7 @@ def link_kernels(source: Layout, source_pixels: int, target: Layout, size: int, 
                  rotation: np.ndarray | None = None, streamed: bool = True) -> None:
     """Run the compiled kernels of a conversion — a map of ``source_pixels`` in layout ``source`` into ``target`` of
     ``size`` — once, on a small zero map that takes the same route, so they are linked (loaded or compiled) before
-    the map itself is read (``lightprobe convert``; see :func:`lightprobe.jit.release_compiler_pages`). The route
+    the map itself is read (``lightprobe convert``; see :func:`lightprobe.util.jit.release_compiler_pages`). The route
     that matters is whether the flux is corrected (:func:`_corrected`): a lat-long of 64 rows into a disc is and a
     4k one is not, and linked on 64 rows that correction's kernels (~5 MiB resident) stayed beside a 4k map that
     never ran them. Where the map is not corrected, the small one is run without (box reductions are numpy's: no
@@ -314,7 +314,7 @@ def supersampling(source: Layout, source_grid: tuple[int, ...], target: Layout, 
                   samples: int | None) -> tuple[int, polar.Steps]:
     """(k, steps): ``samples`` if given, else the rate :func:`auto_samples` gives for the valid-pixel ratio —
     from a lat-long into a lat-long or cube, raised where the target's pixels land further apart in the source
-    than the ratio says (a turned grid): :func:`lightprobe.envmap.polar.samples_needed` on the measured steps."""
+    than the ratio says (a turned grid): :func:`lightprobe.maps.resampling.polar.samples_needed` on the measured steps."""
     filled = _face_layout(target)
     filled_grid = filled.grid_shape(target.size_of(grid))
     ratio = _valid_pixels(source, source_grid) / max(_valid_pixels(target, grid), 1)
@@ -340,7 +340,7 @@ DISCS = ("angular", "sphere")  # layouts whose rim spreads one direction over a 
 # squeezes its back hemisphere into the outer rings): at 16 subsamples a side their lookups were 0.7–2 rows apart and a
 # one-pixel sun there came out 0.3–0.7 % off (lat-long 256 → mirror ball 128 0.24 %, 2048 → 1024 0.40 %); they may
 # take 32 (0.08–0.19 %; the ring is thin: 1.1–1.3× the conversion's time, lat-long 2048 → 256–1024). Other sources
-# into a mirror ball are flux-corrected (:mod:`lightprobe.envmap.flux`) and keep 16, as the correction's adjoint lists
+# into a mirror ball are flux-corrected (:mod:`lightprobe.maps.resampling.flux`) and keep 16, as the correction's adjoint lists
 # every pixel's taps.
 LATLONG_SPHERE_MAX_SAMPLES = 32
 
@@ -349,8 +349,8 @@ def adaptive_rate(source: Layout, target: Layout, k: int) -> int:
     """The most subsamples a side (k_max) a pixel may take, when the rate is automatic: where either layout is a
     disc, whose rim spreads one direction over a ring, or the source is a cube, whose corner texels are a fifth of
     its centre's, or the target is a lat-long, whose rows next to a pole are rings, each pixel takes its own rate
-    between k and :data:`lightprobe.envmap.polar.MAX_SAMPLES` (:data:`LATLONG_SPHERE_MAX_SAMPLES` from a lat-long
-    into a mirror ball) (:func:`lightprobe.envmap.fused._rates`). Elsewhere k (a lat-long into a cube: its polar
+    between k and :data:`lightprobe.maps.resampling.polar.MAX_SAMPLES` (:data:`LATLONG_SPHERE_MAX_SAMPLES` from a lat-long
+    into a mirror ball) (:func:`lightprobe.maps.resampling.fused._rates`). Elsewhere k (a lat-long into a cube: its polar
     rows are shortened by their reductions). A mirror ball source may take 2k: kept at :data:`SPHERE_MIN_SIDE`
     pixels for a tiny target, its base rate is high and its outer rings need more again — 128 → angular 16 at 16 a
     side left its pixels 25–35° from the rim up to 74 % off before the flux correction, more than its capped weights
@@ -371,7 +371,7 @@ def _face_layout(target: Layout) -> Layout:
 
 @dataclass(frozen=True)
 class _Plan:
-    """Everything :func:`lightprobe.envmap.fused.resample_into` needs, prepared once for a map's lines."""
+    """Everything :func:`lightprobe.maps.resampling.fused.resample_into` needs, prepared once for a map's lines."""
 
     target: Layout
     filled: Layout  # what the kernel fills (cube faces for a cross)
@@ -388,7 +388,7 @@ class _Plan:
 
     def fill(self, out: np.ndarray, first: int) -> None:
         """Compute lines ``first`` … ``first + len(out) − 1`` (face-major rows) into ``out``, in bands on
-        :func:`lightprobe.limits.threads` threads (the kernel releases the GIL)."""
+        :func:`lightprobe.util.limits.threads` threads (the kernel releases the GIL)."""
         if self.separable is not None:  # a lat-long target: one face, lines are rows
             matrices, data = self.separable
             out[:] = matrices.band(data, first, first + len(out))
@@ -405,7 +405,7 @@ class _Plan:
     def fill_rows(self, faces: np.ndarray, top: int, first: int, last: int, poles: bool = True) -> None:
         """Compute rows ``first`` … ``last − 1`` of ``faces`` (6, R, n, 3) — image rows ``top + first`` … of the
         cube's side faces, and of +Y and −Y if ``poles`` — through the cube's symmetries
-        (:mod:`lightprobe.envmap.cube_symmetry`)."""
+        (:mod:`lightprobe.maps.resampling.cube_symmetry`)."""
         self._bands(lambda a, b: cube_symmetry.cube_rows_into(*self.cube_rows, poles, faces, top, a, b), first, last)
 
     def fill_polar_faces(self, faces: np.ndarray) -> None:
@@ -415,7 +415,7 @@ class _Plan:
 
     @staticmethod
     def _bands(kernel, first: int, last: int, per_thread: int = 4) -> None:
-        """kernel(a, b) over bands of [first, last) on :func:`lightprobe.limits.threads` threads (it releases the
+        """kernel(a, b) over bands of [first, last) on :func:`lightprobe.util.limits.threads` threads (it releases the
         GIL), several bands a thread: the slow bands (near the poles) even out."""
         rows = last - first
         threads = min(limits.threads(), max(1, rows // 2))
@@ -555,8 +555,8 @@ class Resampler:
         return 0 if self.offsets is None else self.offsets.nbytes + self.idx.nbytes + self.wts.nbytes
 
     def _splice(self, apart: np.ndarray, taps: _Taps, counts: np.ndarray) -> None:
-        """Put the merged taps of the pixels :func:`lightprobe.envmap.fused.footprint_taps` listed apart (sampled
-        round a disc source's rim direction, :func:`lightprobe.envmap.fused.source_rim_taps`) into the CSR arrays."""
+        """Put the merged taps of the pixels :func:`lightprobe.maps.resampling.fused.footprint_taps` listed apart (sampled
+        round a disc source's rim direction, :func:`lightprobe.maps.resampling.fused.source_rim_taps`) into the CSR arrays."""
         merged = np.zeros(taps.source_pixels)
         touched = np.empty(taps.source_pixels, np.int32)
         listed = []
@@ -619,7 +619,7 @@ class Resampler:
                                                                                 tuple(source_grid), omega_t))
 
     def without_flux_correction(self) -> Resampler:
-        """This conversion as it would be without its flux correction (:mod:`lightprobe.envmap.flux`): what the
+        """This conversion as it would be without its flux correction (:mod:`lightprobe.maps.resampling.flux`): what the
         correction removes, for pictures and tests. Shares the weights."""
         plain = copy.copy(self)
         plain._flux = None
@@ -627,7 +627,7 @@ class Resampler:
 
     def without_cell_balance(self) -> Resampler:
         """This conversion as it would be without the balance of a lat-long source's coarsest polar rows
-        (:mod:`lightprobe.envmap.polar_balance`): what the balance removes, for pictures and tests. Shares the
+        (:mod:`lightprobe.maps.resampling.polar_balance`): what the balance removes, for pictures and tests. Shares the
         weights."""
         plain = copy.copy(self)
         plain._cells = None
@@ -698,7 +698,7 @@ class Resampler:
 
 class _Taps:
     """The footprint taps of a conversion, listed a band of target lines at a time by the compiled kernel
-    (:func:`lightprobe.envmap.fused.footprint_taps`): what a :class:`Resampler` stores, and what :func:`delivered`
+    (:func:`lightprobe.maps.resampling.fused.footprint_taps`): what a :class:`Resampler` stores, and what :func:`delivered`
     reads without storing. ``band(first)`` → (counts (n·W,), idx, wts (n·W, max_taps)) for lines first … first+n−1;
     tap indices are flat source pixels (as the kernel reads them: a cube's balanced texels), then reduced polar rows."""
 
@@ -751,8 +751,8 @@ class _Taps:
 
 def delivered(taps: _Taps, source_grid: tuple[int, ...], omega_t: np.ndarray) -> np.ndarray:
     """Σ_t Ω_t W_ts for every source pixel s (flat float64, as the kernel reads them): the energy a sun wholly in
-    each pixel ends with. The compiled adjoint of the taps (:func:`lightprobe.envmap.fused.footprint_delivery`), a
-    share of the target's lines on each of :func:`lightprobe.limits.threads` threads, each into its own total:
+    each pixel ends with. The compiled adjoint of the taps (:func:`lightprobe.maps.resampling.fused.footprint_delivery`), a
+    share of the target's lines on each of :func:`lightprobe.util.limits.threads` threads, each into its own total:
     nothing the size of the taps is held (a :class:`Resampler` holds them: :func:`_taps_delivery`)."""
     n_total = math.prod(source_grid) + taps.reduced_size
     omega_t = np.ascontiguousarray(omega_t, dtype=np.float64)
@@ -781,7 +781,7 @@ _FLUX_CACHE_BYTES = 256 << 20  # the corrections a process keeps (a batch conver
 
 def _cell_balance(source_grid: tuple[int, int], found: np.ndarray, filled: Layout, grid: tuple[int, ...], k: int,
                   k_max: int, steps: polar.Steps, rotation) -> polar_balance.CellBalance | None:
-    """The balance of a lat-long source's coarsest polar rows in this conversion (:mod:`lightprobe.envmap.
+    """The balance of a lat-long source's coarsest polar rows in this conversion (:mod:`lightprobe.maps.
     polar_balance`), or None where it has none; kept for the last pairs of grids. Measured by the compiled adjoint,
     a pole at a time, on the target pixels by that pole alone and into its balanced rows' cells alone."""
     caps = polar_balance.caps(found, source_grid[-1])
@@ -855,7 +855,7 @@ def _flux_corrects(source_layout: Layout, source_pixels: int, target: Layout) ->
     """Whether a conversion from ``source_layout`` (``source_pixels`` as read) into ``target`` is flux-corrected
     (with its rate left automatic): every source but a lat-long; a lat-long into a disc up to
     :data:`LATLONG_FLUX_MAX_PIXELS`, and into anything when it has fewer rows than the rational pole rows need
-    (:data:`lightprobe.envmap.pole_rows.MIN_HEIGHT`: its first rows keep the plain spline, a sun there +22–25 %).
+    (:data:`lightprobe.maps.resampling.pole_rows.MIN_HEIGHT`: its first rows keep the plain spline, a sun there +22–25 %).
     Into a lat-long or a cube a larger lat-long keeps a sun's energy by its own construction — the polar rows'
     reductions and rational weights, measured in tests/test_resample.py."""
     if source_layout.name != "latlong":
@@ -875,7 +875,7 @@ def _corrected(source_layout: Layout, source_grid: tuple[int, ...], target: Layo
 
 def _flux_stencil(source_layout: Layout, source_grid: tuple[int, ...], target: Layout, filled_grid, rotation,
                   samples: int | None, rates: tuple[int, int], delivery_of) -> flux.Stencil | None:
-    """The flux correction of this conversion (:mod:`lightprobe.envmap.flux`), or None where none is made (see
+    """The flux correction of this conversion (:mod:`lightprobe.maps.resampling.flux`), or None where none is made (see
     :func:`_flux_corrects`; nor where the rate is given by hand, ``samples``: the kernel compared as it is).
     ``rates`` (k, k_max) are the conversion's; ``delivery_of(omega_t)`` gives each source pixel's delivery, flat,
     as the kernel reads them. Kept for the last pairs of grids, up to :data:`_FLUX_CACHE_BYTES` of weights, keyed by
@@ -914,7 +914,7 @@ def reference_resample(source: EnvMap, target: Layout, grid: tuple[int, ...], k:
     rows in the kernel's cells, a cube target's edge terms as the kernel's): the reference the compiled kernel is
     tested against, and the path for layouts it does not know. Its lookups are the layout's
     plain B-spline: near a lat-long source's poles it lacks the kernel's rational row weights (the tests compare the
-    two on sources under :data:`lightprobe.envmap.pole_rows.MIN_HEIGHT` rows, where the kernel has none either)."""
+    two on sources under :data:`lightprobe.maps.resampling.pole_rows.MIN_HEIGHT` rows, where the kernel has none either)."""
     if isinstance(target, Cross):  # filled as cube faces and rearranged, as the kernel does (edge terms are a face's)
         faces = reference_resample(source, CUBE, CUBE.grid_shape(target.size_of(grid)), k, rotation)
         return EnvMap(owned(target.from_cube(faces.data)), target)
@@ -959,7 +959,7 @@ def reference_resample(source: EnvMap, target: Layout, grid: tuple[int, ...], k:
 def _add_cube_edge_terms(lookup, face: np.ndarray, row: np.ndarray, col: np.ndarray, h: int, w: int, rotation,
                          total: np.ndarray, wsum: np.ndarray) -> None:
     """Add to cube pixels' weighted sums ``total`` (p, 3) and weight sums ``wsum`` (p,), at k × k plain cells, the
-    kernel's edge terms (:func:`lightprobe.envmap.fused._cube_edge_terms`): for each side of a pixel on its face's
+    kernel's edge terms (:func:`lightprobe.maps.resampling.fused._cube_edge_terms`): for each side of a pixel on its face's
     side, lookups at the side's ends weighted ± t·(dω/(du dv))/48."""
     for side in range(4):
         across = float(side % 2)
@@ -981,7 +981,7 @@ def _add_cube_edge_terms(lookup, face: np.ndarray, row: np.ndarray, col: np.ndar
 def _pole_cells(rows: np.ndarray, sub: np.ndarray, h: int, u: np.ndarray, v: np.ndarray,
                 weight: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(v, weight) of a lat-long target's (p, k, k) subsamples (v along axis 1) of pixels in ``rows`` of ``h``,
-    with the pole rows' cells warped as the kernel's (:data:`lightprobe.envmap.fused.POLE`): v at the warped
+    with the pole rows' cells warped as the kernel's (:data:`lightprobe.maps.resampling.fused.POLE`): v at the warped
     positions, the density there times the cell's width."""
     k = sub.size
     v, weight = v.copy(), weight.copy()

@@ -10,14 +10,14 @@ as an unbroken grid.
 
 So the whole conversion is done this way; it is separable. A target pixel is Σ_r W_tr · X_r(col):
 - W_tr (:func:`row_matrix`): the mean of source row r's y weight over the target row's θ span, against sin θ — the
-  kernel's own rational B-spline weights (:func:`lightprobe.envmap.fused._pole_rows4`), a tap past a pole being
+  kernel's own rational B-spline weights (:func:`lightprobe.maps.resampling.fused._pole_rows4`), a tap past a pole being
   row −1 − r read half a turn round — by 8-point Gauss–Legendre on each piece between the spline's knots (exact
   for the polynomial pieces; ~1e-12 for the rational ones next to the poles);
 - X_r(col) (:func:`column_matrix`): the mean over the pixel's k column subsamples — placed and turned as the
   kernel places and turns them — of row r's periodic cubic B-spline, lookups half a source column apart at most.
-Each source row then gives its (1 + ε) solid angle in total (:mod:`lightprobe.envmap.pole_rows`), Σ_r W_tr = 1
+Each source row then gives its (1 + ε) solid angle in total (:mod:`lightprobe.maps.resampling.pole_rows`), Σ_r W_tr = 1
 and every row of the column matrix sums to 1, so a uniform map stays exactly uniform (float64 sums, one float32
-rounding). Both matrices depend on the geometry alone: :class:`lightprobe.envmap.Resampler` keeps them.
+rounding). Both matrices depend on the geometry alone: :class:`lightprobe.maps.Resampler` keeps them.
 """
 
 from __future__ import annotations
