@@ -15,7 +15,7 @@ def register(sub) -> None:
     p = sub.add_parser("lights", help="area lights + ambient map (Arbree, Walter & Bala 2005)",
                        description="Find the map's bright regions as circular area lights by the paper's "
                                    "centre-surround filter (docs/spec.md §5; every parameter below defaults to the "
-                                   "paper's), and write them as JSON (format lightprobe.lights.decompose, version 1: "
+                                   "paper's), and write them as JSON (format lightprobe.lights, version 1: "
                                    "world-frame directions, radii, RGB powers, the ambient's radiance SH).")
     from ..util.names import LIGHT_METHODS
 

@@ -28,7 +28,7 @@ def register(sub) -> None:
     p = sub.add_parser("radiance", help="radiance environment maps of a BRDF (Cabral, Olano & Nemec 1999)",
                        description="Compute sphere-layout radiance maps L_r(n; v) of an isotropic BRDF: one per "
                                    "view of an icosahedron (12) or its geodesic subdivisions (42, 162) into a "
-                                   "folder with manifest.json (format lightprobe.glossy.radiance, version 1), or with "
+                                   "folder with manifest.json (format lightprobe.radiance, version 1), or with "
                                    "--view one exact map for one view (OUT.exr and OUT.json); or, with "
                                    "--synthesize, the map of a new view blended from a folder of maps "
                                    "(reflection-space IBR).")

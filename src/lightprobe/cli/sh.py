@@ -17,7 +17,7 @@ def register(sub) -> None:
     p = sub.add_parser("sh", help="spherical-harmonic coefficients of the lighting (paper Figure 2)",
                        description="Radiance SH coefficients L_lm (real SH without Condon-Shortley phase, flat "
                                    "order l(l+1)+m) of a map, in a chosen frame. JSON is lightprobe's SH schema "
-                                   "(format lightprobe.sh.basis, version 2), the same as 'export --to json'.")
+                                   "(format lightprobe.sh, version 2), the same as 'export --to json'.")
     add_probe(p)
     add_option(p, "--order", type=Number(int, 0, MAX_ORDER), default=2, help="l_max (2: nine coefficients)")
     p.add_argument("--frame", choices=list(FRAMES), default="world",

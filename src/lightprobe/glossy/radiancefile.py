@@ -1,6 +1,6 @@
 """Radiance-map sets on disk: a folder of sphere-layout EXRs, one per view, and its ``manifest.json``.
 
-Schema ``{"format": "lightprobe.glossy.radiance", "version": 1, ...}``:
+Schema ``{"format": "lightprobe.radiance", "version": 1, ...}``:
 
 * ``frame``: ``world`` (docs/spec.md §1) — every direction and frame below is in it;
 * ``quantity``: ``radiance`` — each texel is L_r(n; v), the radiance the BRDF sends toward the view v from a
@@ -38,7 +38,7 @@ from ..util.errors import InputError, UsageError
 from ..maps.layouts import CUBE, Sphere
 from ..sh.shfile import versioned_document
 
-FORMAT, VERSION = "lightprobe.glossy.radiance", 1
+FORMAT, VERSION = "lightprobe.radiance", 1
 MAX_BYTES = 1 << 20
 MAX_VIEWS = 162
 SMOOTH_FILE = "smooth.exr"

@@ -99,7 +99,7 @@ class LightSet:
 
 
 def read_lights_json(text: str | bytes, what: str = "lights file") -> LightSet:
-    """The lights of a ``lightprobe.lights.decompose`` v1 document; every field the exports use is checked (one clear
+    """The lights of a ``lightprobe.lights`` v1 document; every field the exports use is checked (one clear
     :class:`~lightprobe.util.errors.InputError` otherwise). Directions are normalised; a radius must be within
     0°..90°, powers finite and non-negative."""
     from ..sh.shfile import read_sh_json, versioned_document

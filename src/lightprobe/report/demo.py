@@ -47,10 +47,18 @@ def _sections_html(rep: Report) -> str:
     parts, viewer = [], None
     with ThreadPoolExecutor(1) as beside:
         for section in track(SECTIONS, "writing the report", total=len(SECTIONS)):
+            t0 = time.perf_counter()
             if section is section_engines and section_viewer in SECTIONS and not engines_missing():
                 viewer = _viewer_started(rep, beside)
             parts.append(section_viewer(rep, viewer) if section is section_viewer else section(rep))
+            rep.sections[section.__name__.removeprefix("section_")] = time.perf_counter() - t0
     return "".join(parts)
+
+
+def section_shares(rep: Report, total: float) -> list[list]:
+    """Rows of the timing table: each section's wall time and its share of the whole report, slowest first."""
+    return [[f"section: {name}", f"{seconds:.1f} s", f"{100 * seconds / total:.0f} %"]
+            for name, seconds in sorted(rep.sections.items(), key=lambda kv: -kv[1])]
 
 
 def warm_up() -> float:
@@ -115,12 +123,15 @@ def _write_report(env: EnvMap, out: Path, probe_name: str | None) -> None:
     t0 = time.perf_counter()
     compile_seconds = warm_up()
     body = _sections_html(rep)
-    rows = [["compiling the numba kernels, or loading them from numba's cache (setup.sh compiles them)",
-             f"{1000 * compile_seconds:.1f} ms"]]
-    rows += [[k, f"{1000 * v:.1f} ms"] for k, v in rep.timings.items()]
+    total = time.perf_counter() - t0
+    shares = [["compiling the numba kernels, or loading them from numba's cache (setup.sh compiles them)",
+               f"{compile_seconds:.1f} s", f"{100 * compile_seconds / total:.0f} %"], *section_shares(rep, total)]
+    rows = [[k, f"{1000 * v:.1f} ms"] for k, v in rep.timings.items()]
     page = (f"<!doctype html><html><head><meta charset='utf-8'><title>lightprobe report</title>"
             f"<style>{STYLE}</style></head><body><h1>lightprobe report</h1>{body}"
-            f"<h2>Timings</h2><p>Each step timed warm, after the kernels were compiled.</p>"
-            f"{table(['step', 'time'], rows)}"
-            f"<p><small>Made in {time.perf_counter() - t0:.1f} s.</small></p></body></html>")
+            f"<h2>Timings</h2><p>Where the report's {total:.1f} s went: each section's wall time (the viewer's "
+            "screenshots are taken during the engines section) and its share.</p>"
+            f"{table(['part', 'time', 'share'], shares)}"
+            f"<p>Each step timed warm, after the kernels were compiled.</p>{table(['step', 'time'], rows)}"
+            f"<p><small>Made in {total:.1f} s.</small></p></body></html>")
     write_text(out / "index.html", page)

@@ -24,6 +24,7 @@ class Report:
     exposure: float = 0.0
     timings: dict[str, float] = field(default_factory=dict)
     shared: dict = field(default_factory=dict)  # results later sections reuse (SH coefficients, references)
+    sections: dict[str, float] = field(default_factory=dict)  # each section's wall time, seconds
 
     def sh(self, l_max: int = 6) -> SHCoeffs:
         """Radiance SH of the probe up to ``l_max`` (computed once)."""
