@@ -385,11 +385,12 @@ def _array_strips(rgb: np.ndarray, rows: int):
 
 def write_image_strips(path: str | os.PathLike, shape: tuple[int, int], strips, *, half: bool = False,
                        inputs=()) -> Path:
-    """Write linear RGB to an HDR file (``.exr``, ``.hdr``, ``.pfm``) as it is computed: ``strips`` yields
-    ``(top, rows)`` blocks of (n, W, 3) float32 rows, top to bottom, of an image of ``shape`` (H, W). Memory is one
-    strip. Atomic like :func:`write_image`: the file is read back (in strips) before it replaces ``path``, and a
-    failure — including a strip that cannot be written, or values over the half range with ``half`` — leaves
-    nothing behind.
+    """Write linear RGB to an HDR file (``.exr``, ``.hdr``, ``.pfm``) as it is computed.
+
+    ``strips`` yields ``(top, rows)`` blocks of (n, W, 3) float32 rows, top to bottom, of an image of ``shape``
+    (H, W). Memory is one strip. Atomic like :func:`write_image`: the file is read back (in strips) before it
+    replaces ``path``, and a failure — including a strip that cannot be written, or values over the half range with
+    ``half`` — leaves nothing behind.
 
     Parameters
     ----------
