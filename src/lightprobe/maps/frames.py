@@ -1,8 +1,8 @@
 """Coordinate frames and rotations.
 
-**World frame** (docs/spec.md §1): right-handed, +Y up, the *front* of a panorama is −Z, image right is +X. Every layout in
-:mod:`lightprobe.maps.layouts` maps pixels to directions in this frame, so converting between layouts never mirrors or
-rotates the scene.
+**World frame** (docs/spec.md §1): right-handed, +Y up, the *front* of a panorama is −Z, image right is +X. Every
+layout in :mod:`lightprobe.maps.layouts` maps pixels to directions in this frame, so converting between layouts never
+mirrors or rotates the scene.
 
 A :class:`Frame` is a named orthogonal 3×3 matrix ``to_frame`` with ``d_frame = to_frame @ d_world``. It may be a
 mirror (determinant −1): ``rh2001`` is the world frame with z negated, the frame in which Ramamoorthi & Hanrahan's
@@ -20,7 +20,23 @@ from ..util.errors import UsageError
 
 @dataclass(frozen=True)
 class Frame:
-    """A named frame: ``d_frame = to_frame @ d_world`` for unit direction vectors."""
+    """A named frame: ``d_frame = to_frame @ d_world`` for unit direction vectors.
+
+    Parameters
+    ----------
+    name : str
+        The frame's name, as :func:`frame` looks it up (``world``, ``rh2001``, ``threejs``, …).
+    to_frame : numpy.ndarray
+        Orthogonal 3×3 matrix taking world-frame directions into this frame (stored as float64); it may be a mirror
+        (determinant −1).
+    description : str, default ""
+        One line saying what the frame is.
+
+    Raises
+    ------
+    UsageError
+        When ``to_frame`` is not an orthogonal 3×3 matrix (to 1e-9).
+    """
 
     name: str
     to_frame: np.ndarray = field(repr=False)
@@ -38,11 +54,36 @@ class Frame:
         return bool(np.linalg.det(self.to_frame) < 0)
 
     def from_world(self, d: np.ndarray) -> np.ndarray:
-        """World-frame directions (..., 3) → this frame."""
+        """World-frame directions (..., 3) → this frame.
+
+        Parameters
+        ----------
+        d : numpy.ndarray
+            Directions in the world frame (+Y up, front −Z, right +X), shape (..., 3); unit vectors stay unit.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``to_frame @ d`` for each direction, shape (..., 3), float64.
+        """
         return np.asarray(d) @ self.to_frame.T
 
     def to_world(self, d: np.ndarray) -> np.ndarray:
-        """Directions (..., 3) in this frame → world frame."""
+        """Directions (..., 3) in this frame → world frame.
+
+        The inverse of :meth:`from_world` (``to_frame`` is orthogonal: its inverse is its transpose).
+
+        Parameters
+        ----------
+        d : numpy.ndarray
+            Directions in this frame, shape (..., 3).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``to_frame.T @ d`` for each direction: world-frame directions (+Y up, front −Z), shape (..., 3),
+            float64.
+        """
         return np.asarray(d) @ self.to_frame
 
 
@@ -76,7 +117,24 @@ FRAMES: dict[str, Frame] = {f.name: f for f in (WORLD, RH2001, THREEJS, THREEJS_
 
 
 def frame(name: str | Frame) -> Frame:
-    """Look a frame up by name (``world``, ``rh2001``, …); a :class:`Frame` passes through."""
+    """Look a frame up by name (``world``, ``rh2001``, …); a :class:`Frame` passes through.
+
+    Parameters
+    ----------
+    name : str or Frame
+        A name of :data:`FRAMES` (``world``, ``rh2001``, ``threejs``, ``threejs-axes``, ``filament``, ``gltf``,
+        ``unity``, ``babylon``), or a :class:`Frame`.
+
+    Returns
+    -------
+    Frame
+        The frame of that name, or ``name`` itself when it is a :class:`Frame`.
+
+    Raises
+    ------
+    UsageError
+        When no frame has that name.
+    """
     if isinstance(name, Frame):
         return name
     try:
@@ -86,19 +144,53 @@ def frame(name: str | Frame) -> Frame:
 
 
 def rotation_x(deg: float) -> np.ndarray:
-    """Right-handed rotation by ``deg`` degrees about +X (counter-clockwise looking from +X toward the origin)."""
+    """Right-handed rotation by ``deg`` degrees about +X (counter-clockwise looking from +X toward the origin).
+
+    Parameters
+    ----------
+    deg : float
+        The angle in degrees; positive turns +Y toward +Z.
+
+    Returns
+    -------
+    numpy.ndarray
+        [[1, 0, 0], [0, c, −s], [0, s, c]] (c, s the angle's cosine and sine), float64, for column vectors.
+    """
     c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
     return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
 
 
 def rotation_y(deg: float) -> np.ndarray:
-    """Right-handed rotation by ``deg`` degrees about +Y (up)."""
+    """Right-handed rotation by ``deg`` degrees about +Y (up).
+
+    Parameters
+    ----------
+    deg : float
+        The angle in degrees; positive turns +Z toward +X, so the front (−Z) toward −X (counter-clockwise seen from
+        above).
+
+    Returns
+    -------
+    numpy.ndarray
+        [[c, 0, s], [0, 1, 0], [−s, 0, c]] (c, s the angle's cosine and sine), float64, for column vectors.
+    """
     c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
     return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
 
 
 def rotation_z(deg: float) -> np.ndarray:
-    """Right-handed rotation by ``deg`` degrees about +Z (which points backwards, out of the panorama's front)."""
+    """Right-handed rotation by ``deg`` degrees about +Z (which points backwards, out of the panorama's front).
+
+    Parameters
+    ----------
+    deg : float
+        The angle in degrees; positive turns +X toward +Y.
+
+    Returns
+    -------
+    numpy.ndarray
+        [[c, −s, 0], [s, c, 0], [0, 0, 1]] (c, s the angle's cosine and sine), float64, for column vectors.
+    """
     c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
     return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
 
@@ -109,12 +201,44 @@ def rotation_from_ypr(yaw: float, pitch: float, roll: float) -> np.ndarray:
     Applied to an environment, R moves the light that was in direction d to direction R·d: a positive yaw turns the
     panorama counter-clockwise seen from above (the front, −Z, moves toward −X), a positive pitch lifts the front
     toward +Y, a positive roll turns the view counter-clockwise about the backward axis +Z.
+
+    Parameters
+    ----------
+    yaw : float
+        Rotation about +Y (up), degrees.
+    pitch : float
+        Rotation about +X (right), degrees.
+    roll : float
+        Rotation about +Z (backward), degrees.
+
+    Returns
+    -------
+    numpy.ndarray
+        The 3×3 rotation matrix R (float64) in the world frame, applied to column vectors: ``R @ d``.
     """
     return rotation_y(yaw) @ rotation_x(pitch) @ rotation_z(roll)
 
 
 def as_rotation(rotation: np.ndarray | tuple[float, float, float]) -> np.ndarray:
-    """A 3×3 proper rotation from a matrix or a (yaw, pitch, roll) triple in degrees; refuses mirrors."""
+    """A 3×3 proper rotation from a matrix or a (yaw, pitch, roll) triple in degrees; refuses mirrors.
+
+    Parameters
+    ----------
+    rotation : numpy.ndarray or tuple of float
+        A 3×3 proper rotation matrix in the world frame (orthogonal to 1e-6, determinant +1), or (yaw, pitch, roll)
+        in degrees as :func:`rotation_from_ypr` takes them.
+
+    Returns
+    -------
+    numpy.ndarray
+        The 3×3 rotation matrix (float64): the given matrix, or the one the three angles make.
+
+    Raises
+    ------
+    UsageError
+        When a value is not finite, or the matrix is not a proper orthogonal 3×3 matrix (a mirror included), or the
+        input has another shape.
+    """
     r = np.asarray(rotation, dtype=np.float64)
     if not np.isfinite(r).all():
         raise UsageError("a rotation must be finite numbers")

@@ -55,7 +55,16 @@ READ_STRIP_BYTES = 16 << 20  # strip decode and display decoding; and OpenImageI
 
 @contextlib.contextmanager
 def captured_stderr():
-    """Capture what C libraries write to file descriptor 2 during the block; yields a list that receives the text."""
+    """Capture what C libraries write to file descriptor 2 during the block; yields a list that receives the text.
+
+    Without a file descriptor 2 nothing is captured and the list stays empty.
+
+    Yields
+    ------
+    list of str
+        Empty during the block; on leaving it, receives the captured text (its first 64 KiB, decoded as UTF-8 with
+        replacement characters) as one string.
+    """
     captured: list[str] = []
     try:
         saved = os.dup(2)
@@ -94,7 +103,20 @@ def _error_text(source=None) -> str:
 
 
 def check_regular_file(path: Path, what: str = "") -> None:
-    """Refuse a missing path, a folder, or anything that is not a regular file (FIFO, device, socket)."""
+    """Refuse a missing path, a folder, or anything that is not a regular file (FIFO, device, socket).
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The path to check (links are followed).
+    what : str, default ""
+        What the file is for, put before the path in the message (``"probe"`` gives "cannot read probe PATH: …").
+
+    Raises
+    ------
+    InputError
+        When the path does not exist, cannot be examined, is a folder, or is not a regular file.
+    """
     label = f"{what} {path}" if what else str(path)
     try:
         mode = os.stat(path).st_mode
@@ -110,6 +132,20 @@ def check_regular_file(path: Path, what: str = "") -> None:
 
 @dataclass(frozen=True)
 class ImageHeader:
+    """What an image file's header says about its pixels (:func:`image_header`).
+
+    Parameters
+    ----------
+    width : int
+        Width in pixels.
+    height : int
+        Height in pixels.
+    channels : int
+        Channels per pixel, as stored (alpha and others included).
+    bytes_per_channel : int
+        Bytes of one channel value as stored (1 for 8-bit, 2 for 16-bit or half, 4 for float).
+    """
+
     width: int
     height: int
     channels: int
@@ -117,10 +153,18 @@ class ImageHeader:
 
     @property
     def pixels(self) -> int:
+        """width × height."""
         return self.width * self.height
 
     def read_bytes(self) -> int:
-        """Estimated peak memory of reading the pixels as float32 RGB (the decode buffer and the result)."""
+        """Estimated peak memory of reading the pixels as float32 RGB (the decode buffer and the result).
+
+        Returns
+        -------
+        int
+            Bytes: per pixel 12 (the float32 RGB result) plus 4 per stored channel, plus 16 MiB for OpenImageIO's
+            buffers of one strip.
+        """
         return self.pixels * (READ_BYTES_PER_PIXEL_BASE + 4 * self.channels) + READ_STRIP_BYTES
 
 
@@ -156,7 +200,27 @@ def _header(path: Path, spec) -> ImageHeader:
 
 
 def image_header(path: str | os.PathLike) -> ImageHeader:
-    """Size and channels of an image file from its header alone (checked as :func:`read_image` checks it)."""
+    """Size and channels of an image file from its header alone (checked as :func:`read_image` checks it).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The image file; only a regular file is opened.
+
+    Returns
+    -------
+    ImageHeader
+        Width, height, channels and bytes per channel as the header gives them.
+
+    Raises
+    ------
+    InputError
+        When the file is missing, not a regular file, not an image OpenImageIO reads, or its header gives an empty
+        image, over 64 channels, a volume, or (``.hdr``, ``.pfm``, ``.png``) more pixels than a file of its size can
+        hold.
+    BudgetError
+        When the header claims more pixels than the pixel limit.
+    """
     path = Path(path)
     inp = _open(path)
     try:
@@ -187,7 +251,31 @@ def read_image(path: str | os.PathLike, working_bytes_per_pixel: int = 0) -> np.
     """Read an image file as linear float32 RGB of shape (H, W, 3), row 0 at the top. See the module docstring.
 
     ``working_bytes_per_pixel``: memory the caller will need per pixel of this image beyond the read itself; the
-    sum is checked against the memory budget before any pixel is decoded."""
+    sum is checked against the memory budget before any pixel is decoded.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The image file: ``.hdr``, OpenEXR, ``.pfm``, or any 8/16-bit image OpenImageIO reads (``.png``, ``.jpg``,
+        …).
+    working_bytes_per_pixel : int, default 0
+        Bytes per pixel the caller needs beyond the read, added to the read's own estimate
+        (:meth:`ImageHeader.read_bytes`) in the memory check.
+
+    Returns
+    -------
+    numpy.ndarray
+        float32 (H, W, 3) linear RGB, row 0 at the top, values as stored (NaN and negative values kept); integer
+        images decoded from sRGB to linear unless the file says it is linear.
+
+    Raises
+    ------
+    InputError
+        When the file cannot be opened as an image, its header is refused (see :func:`image_header`), or its pixel
+        data cannot be decoded.
+    BudgetError
+        When the image is over the pixel limit or reading it would exceed the memory budget.
+    """
     path = Path(path)
     inp = _open(path)
     try:
@@ -297,11 +385,41 @@ def _array_strips(rgb: np.ndarray, rows: int):
 
 def write_image_strips(path: str | os.PathLike, shape: tuple[int, int], strips, *, half: bool = False,
                        inputs=()) -> Path:
-    """Write linear RGB to an HDR file (``.exr``, ``.hdr``, ``.pfm``) as it is computed: ``strips`` yields
-    ``(top, rows)`` blocks of (n, W, 3) float32 rows, top to bottom, of an image of ``shape`` (H, W). Memory is one
-    strip. Atomic like :func:`write_image`: the file is read back (in strips) before it replaces ``path``, and a
-    failure — including a strip that cannot be written, or values over the half range with ``half`` — leaves
-    nothing behind."""
+    """Write linear RGB to an HDR file (``.exr``, ``.hdr``, ``.pfm``) as it is computed.
+
+    ``strips`` yields ``(top, rows)`` blocks of (n, W, 3) float32 rows, top to bottom, of an image of ``shape``
+    (H, W). Memory is one strip. Atomic like :func:`write_image`: the file is read back (in strips) before it
+    replaces ``path``, and a failure — including a strip that cannot be written, or values over the half range with
+    ``half`` — leaves nothing behind.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The output file: ``.exr`` (zip-compressed), ``.hdr`` or ``.pfm``.
+    shape : tuple of int
+        (H, W) of the image, in pixels.
+    strips : iterable of tuple
+        ``(top, rows)`` pairs: ``rows`` an (n, W, 3) array of linear RGB (written as float32), ``top`` its first
+        row; each strip must start where the previous one ended, and together they must cover all H rows.
+    half : bool, default False
+        Store ``.exr`` as half floats (other formats ignore it); values beyond ±65504 are refused.
+    inputs : iterable of path, default ()
+        As for :func:`write_image`: the command's inputs, which ``path`` may not be.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path`` as a Path, once the checked file has replaced it.
+
+    Raises
+    ------
+    InputError
+        When the extension is not ``.exr``, ``.hdr`` or ``.pfm``, the target cannot be written (a folder, an input,
+        a missing folder), the write fails, a value exceeds the half range, or the written file does not read back
+        as written (in size, and to the bit except for ``.hdr``).
+    UsageError
+        When a strip is not (n, W, 3), does not continue the image, or the strips end before its last row.
+    """
     path = Path(path)
     ext = path.suffix.lower()
     if ext not in HDR_WRITE_FORMATS:
@@ -367,6 +485,41 @@ def write_image(
     HDR formats store the values as given (``exposure``/``curve`` apply only to ``.png``/``.jpg``; ``encoded``
     says the values are display-encoded already, to be written to 8 bits as they are). ``inputs``: files this
     output must not overwrite. Returns the path.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The output file; its extension picks the format: ``.exr`` (float32, or half), ``.hdr``, ``.pfm``,
+        ``.png``, ``.jpg``/``.jpeg``.
+    rgb : numpy.ndarray
+        Linear RGB radiance (H, W, 3), row 0 at the top (written as float32); display-encoded values in [0, 1]
+        with ``encoded``.
+    half : bool, default False
+        Store ``.exr`` as half floats; values beyond ±65504 are refused.
+    exposure : float, default 0.0
+        Exposure in stops for ``.png``/``.jpg`` (see :func:`lightprobe.maps.tonemap.tonemap`); ignored for HDR
+        formats.
+    curve : str, default "srgb"
+        Tone curve for ``.png``/``.jpg``: ``"srgb"`` or ``"aces"``; ignored for HDR formats.
+    encoded : bool, default False
+        For ``.png``/``.jpg``: the values are display-encoded already and are written to 8 bits as they are
+        (clipped to [0, 1], NaN as 0), without ``exposure`` or ``curve``.
+    inputs : iterable of path, default ()
+        Files this output must not overwrite (the command's inputs).
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``, written.
+
+    Raises
+    ------
+    InputError
+        When the extension is not a format it writes, the target cannot be written (a folder, an input, a missing
+        folder), the write fails, or the written file does not read back (HDR) or has not its full size (LDR).
+    UsageError
+        When ``rgb`` is not an (H, W, 3) array with at least one pixel, or (LDR) ``curve`` or ``exposure`` is out of
+        its range.
     """
     path = Path(path)
     ext = path.suffix.lower()

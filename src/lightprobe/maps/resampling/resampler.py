@@ -42,14 +42,41 @@ def auto_samples(ratio: float) -> int:
     """Supersampling rate k (k×k lookups per target pixel) for ``ratio`` source pixels per target pixel.
 
     k = ⌈2√ratio⌉, at least 2: lookups are spaced at most half a source pixel apart, where the cubic B-spline's
-    sinc⁴ spectrum makes the sum of lookups integrate even a one-pixel sun to about 0.1 %."""
+    sinc⁴ spectrum makes the sum of lookups integrate even a one-pixel sun to about 0.1 %.
+
+    Parameters
+    ----------
+    ratio : float
+        Valid source pixels per valid target pixel (a footprint's area in source pixels).
+
+    Returns
+    -------
+    int
+        k, lookups per side of a target pixel.
+    """
     return max(2, int(np.ceil(2 * np.sqrt(ratio))))
 
 
 def box_reduce(env: EnvMap) -> EnvMap:
     """Halve the resolution: each new pixel is the solid-angle-weighted mean of a 2×2 block (∫L dω unchanged).
 
-    Needs even dimensions; a cross is reduced as cube faces and returned as a cube."""
+    Needs even dimensions; a cross is reduced as cube faces and returned as a cube.
+
+    Parameters
+    ----------
+    env : EnvMap
+        The map (linear RGB radiance); its grid's last two axes must be even (a cross's tiles: its face edge).
+
+    Returns
+    -------
+    EnvMap
+        The map at half the height and width, in the same layout (``cube`` for a cross), float32.
+
+    Raises
+    ------
+    LayoutError
+        When a side is odd.
+    """
     if isinstance(env.layout, Cross):
         env = EnvMap(env.layout.to_cube(env.data), CUBE)
     h, w = env.grid[-2:]
@@ -76,9 +103,9 @@ SPHERE_MIN_SIDE = 128
 
 
 def _reducible(layout: Layout, grid: tuple[int, ...]) -> bool:
-    """Whether a box reduction may halve a source of this layout and grid: even sides, at least 8 pixels, a
-    lat-long keeps the rational pole rows (:data:`lightprobe.maps.resampling.pole_rows.MIN_HEIGHT`: a sun in a pole row of
-    a source halved under 48 rows gained 22 % of its energy; a tiny target reads the 48 rows with more subsamples
+    """Whether a box reduction may halve a source of this layout and grid: even sides, at least 8 pixels, a lat-long
+    keeps the rational pole rows (:data:`lightprobe.maps.resampling.pole_rows.MIN_HEIGHT`: a sun in a pole row of a
+    source halved under 48 rows gained 22 % of its energy; a tiny target reads the 48 rows with more subsamples
     instead), and a mirror ball keeps :data:`SPHERE_MIN_SIDE` pixels."""
     h, w = grid[-2:]
     if isinstance(layout, Cross):
@@ -149,17 +176,48 @@ def resample(
 ) -> EnvMap:
     """Resample ``source`` into layout ``target`` of ``size`` (default: about the same number of valid pixels).
 
-    Each target pixel is the solid-angle-weighted mean (weights ``dω/(du dv)`` of the target layout) of k×k
-    stratified lookups spread over its footprint, each a cubic B-spline interpolation of the source. Lookups are
-    at most half a source pixel apart (k is measured on a sample of the target's pixels:
-    :func:`supersampling`), so ∫L dω is conserved (to ~0.1 % even for a sun of one pixel) and a uniform map stays
-    exactly uniform; sources with over 16 pixels per target pixel are first box-reduced (exactly
-    energy-preserving), and a latlong source's polar rows are read from their reductions in azimuth where the
-    lookups would skip columns (:mod:`lightprobe.maps.resampling.polar`), with rational spline weights in the rows next to
-    the poles so each row keeps its solid angle (:mod:`lightprobe.maps.resampling.pole_rows`). ``rotation`` R turns the
-    environment: the target at direction d shows the source at Rᵀd. The work is one compiled pass
-    (:mod:`lightprobe.maps.resampling.fused`) whose memory is the output; an unturned lat-long into a cube reads each
-    footprint for its images under the cube's symmetries (:mod:`lightprobe.maps.resampling.cube_symmetry`).
+    Each target pixel is the solid-angle-weighted mean (weights ``dω/(du dv)`` of the target layout) of k×k stratified
+    lookups spread over its footprint, each a cubic B-spline interpolation of the source. Lookups are at most half a
+    source pixel apart (k is measured on a sample of the target's pixels: :func:`supersampling`), so ∫L dω is conserved
+    (to ~0.1 % even for a sun of one pixel) and a uniform map stays exactly uniform; sources with over 16 pixels per
+    target pixel are first box-reduced (exactly energy-preserving), and a latlong source's polar rows are read from
+    their reductions in azimuth where the lookups would skip columns (:mod:`lightprobe.maps.resampling.polar`), with
+    rational spline weights in the rows next to the poles so each row keeps its solid angle
+    (:mod:`lightprobe.maps.resampling.pole_rows`). ``rotation`` R turns the environment: the target at direction d shows
+    the source at Rᵀd. The work is one compiled pass (:mod:`lightprobe.maps.resampling.fused`) whose memory is the
+    output; an unturned lat-long into a cube reads each footprint for its images under the cube's symmetries
+    (:mod:`lightprobe.maps.resampling.cube_symmetry`).
+
+    With ``samples`` given, k is that rate for every pixel, and the box reduction and the flux correction
+    (:mod:`lightprobe.maps.resampling.flux`) are left out: the kernel as it is, for comparisons.
+
+    Parameters
+    ----------
+    source : EnvMap
+        The map to convert (linear RGB radiance, world frame), in any layout.
+    target : Layout
+        The target layout, an instance (:func:`lightprobe.maps.layouts.layout` looks one up by name).
+    size : int or None, default None
+        The target's size: image height for latlong, angular and sphere, face edge for cube, cross and hcross.
+        None (or 0): :meth:`~lightprobe.maps.layouts.Layout.default_size` of the source's valid pixel count.
+    rotation : numpy.ndarray or None, default None
+        3×3 rotation matrix R in the world frame (+Y up, front −Z): light that came from d comes from R·d; None:
+        not turned. Taken as given (:func:`lightprobe.maps.frames.as_rotation` checks one).
+    samples : int or None, default None
+        Supersampling rate k (k×k lookups per target pixel); None: automatic (:func:`supersampling`, and per
+        pixel up to :func:`adaptive_rate`).
+
+    Returns
+    -------
+    EnvMap
+        The converted map in ``target`` (float32 radiance, the target's grid for ``size``).
+
+    Raises
+    ------
+    UsageError
+        When ``size`` is negative or not a whole number.
+    BudgetError
+        When the target is over the pixel limit or the conversion would exceed the memory budget.
     """
     plan = _plan(source, target, size, rotation, samples)
     if plan is None:
@@ -170,10 +228,47 @@ def resample(
 
 def resample_strips(source: EnvMap, target: Layout, size: int | None = None, *, rotation: np.ndarray | None = None,
                     samples: int | None = None, strip_pixels: int = 1 << 18):
-    """:func:`resample` for writing a file as it is computed: ``(shape, strips)`` — the (H, W) of the target's
-    image file (a cube's 6N × N strip) and an iterator of ``(top, rows)``, float32 (n, W, 3) blocks of image rows of
-    about ``strip_pixels`` pixels, top to bottom. The same values as :func:`resample`; memory is one strip, not the
-    map. Crosses (whose tiles are turned) and layouts the kernel does not know come as one strip."""
+    """:func:`resample` for writing a file as it is computed: the image's shape and an iterator of its strips.
+
+    ``(shape, strips)`` — the (H, W) of the target's image file (a cube's 6N × N strip) and an iterator of
+    ``(top, rows)``, float32 (n, W, 3) blocks of image rows of about ``strip_pixels`` pixels, top to bottom (what
+    :func:`lightprobe.maps.images.write_image_strips` takes). The same values as :func:`resample`; memory is one
+    strip, not the map. A cross is computed strip by strip from the rows of its faces where no tile is a transposed
+    face (:meth:`~lightprobe.maps.layouts.Cross.rows_are_face_rows`); a cross with a transposed tile and layouts
+    the kernel does not know come as one strip.
+
+    Parameters
+    ----------
+    source : EnvMap
+        The map to convert, in any layout.
+    target : Layout
+        The target layout, an instance.
+    size : int or None, default None
+        The target's size, as :func:`resample` takes it.
+    rotation : numpy.ndarray or None, default None
+        3×3 rotation matrix R in the world frame (light from d comes from R·d), or None.
+    samples : int or None, default None
+        Supersampling rate k, or None for automatic, as :func:`resample` takes it.
+    strip_pixels : int, default 262144
+        About how many pixels of the image each strip holds (at least one image row).
+
+    Returns
+    -------
+    shape : tuple of int
+        (H, W) of the target's image file.
+    strips : iterator of tuple
+        ``(top, rows)``: ``top`` the first image row of the strip, ``rows`` float32 (n, W, 3) radiance. The
+        strips are computed as they are taken (with a progress bar), except where all comes as one strip: then
+        before this returns.
+
+    Raises
+    ------
+    UsageError
+        When ``size`` is negative or not a whole number: checked when called, before any strip.
+    BudgetError
+        When the target is over the pixel limit or the conversion would exceed the memory budget, also before any
+        strip.
+    """
     plan = _plan(source, target, size, rotation, samples)
     if plan is None or (isinstance(target, Cross) and not target.rows_are_face_rows()):
         from ..files import to_image
@@ -204,13 +299,30 @@ _LINKING = threading.local()  # while link_kernels runs its small map: .small, a
 
 def link_kernels(source: Layout, source_pixels: int, target: Layout, size: int, *,
                  rotation: np.ndarray | None = None, streamed: bool = True) -> None:
-    """Run the compiled kernels of a conversion — a map of ``source_pixels`` in layout ``source`` into ``target`` of
-    ``size`` — once, on a small zero map that takes the same route, so they are linked (loaded or compiled) before
-    the map itself is read (``lightprobe convert``; see :func:`lightprobe.util.jit.release_compiler_pages`). The route
-    that matters is whether the flux is corrected (:func:`_corrected`): a lat-long of 64 rows into a disc is and a
-    4k one is not, and linked on 64 rows that correction's kernels (~5 MiB resident) stayed beside a 4k map that
-    never ran them. Where the map is not corrected, the small one is run without (box reductions are numpy's: no
-    kernel to link)."""
+    """Run the compiled kernels of a conversion once, on a small zero map that takes the same route.
+
+    The conversion is a map of ``source_pixels`` in layout ``source`` into ``target`` of ``size``; its kernels are
+    linked (loaded or compiled) before the map itself is read (``lightprobe convert``; see
+    :func:`lightprobe.util.jit.release_compiler_pages`). The route that matters is whether the flux is corrected
+    (:func:`_corrected`): a lat-long of 64 rows into a disc is and a 4k one is not, and linked on 64 rows that
+    correction's kernels (~5 MiB resident) stayed beside a 4k map that never ran them. Where the map is not corrected,
+    the small one is run without (box reductions are numpy's: no kernel to link).
+
+    Parameters
+    ----------
+    source : Layout
+        The layout of the map that will be converted.
+    source_pixels : int
+        Its pixel count (the whole image grid), from which the route is judged.
+    target : Layout
+        The target layout.
+    size : int
+        The target's size.
+    rotation : numpy.ndarray or None, default None
+        The 3×3 rotation the conversion will apply, or None.
+    streamed : bool, default True
+        Link the kernels of :func:`resample_strips` (True) or of :func:`resample` (False), as the conversion will run.
+    """
     grid = source.grid_shape(source.default_size(round(source_pixels * source.valid_fraction)))
     reduced_layout, reduced = _reduced_grid(source, grid, target, target.grid_shape(size))
     corrected = _corrected(reduced_layout, reduced, target, None)
@@ -312,9 +424,35 @@ def _prepared(source: EnvMap, target: Layout, size: int | None, samples: int | N
 
 def supersampling(source: Layout, source_grid: tuple[int, ...], target: Layout, grid: tuple[int, ...], rotation,
                   samples: int | None) -> tuple[int, polar.Steps]:
-    """(k, steps): ``samples`` if given, else the rate :func:`auto_samples` gives for the valid-pixel ratio —
-    from a lat-long into a lat-long or cube, raised where the target's pixels land further apart in the source
-    than the ratio says (a turned grid): :func:`lightprobe.maps.resampling.polar.samples_needed` on the measured steps."""
+    """(k, steps): the supersampling rate of a conversion and the steps measured to choose it.
+
+    k is ``samples`` if given, else the rate :func:`auto_samples` gives for the valid-pixel ratio — from a lat-long
+    into a lat-long or cube, raised where the target's pixels land further apart in the source than the ratio says
+    (a turned grid): :func:`lightprobe.maps.resampling.polar.samples_needed` on the measured steps.
+
+    Parameters
+    ----------
+    source : Layout
+        The source's layout, as the conversion reads it (a cross as ``cube``).
+    source_grid : tuple of int
+        The source's grid, after any box reduction.
+    target : Layout
+        The target layout (a cross is measured as its cube faces).
+    grid : tuple of int
+        The target's grid.
+    rotation : numpy.ndarray or None
+        The conversion's 3×3 rotation in the world frame, or None.
+    samples : int or None
+        A rate given by hand, or None for automatic.
+
+    Returns
+    -------
+    k : int
+        Lookups per side of a target pixel.
+    steps : lightprobe.maps.resampling.polar.Steps
+        How far apart, in source pixels, neighbouring target pixels land, measured for a lat-long source only
+        (nothing measured for the others).
+    """
     filled = _face_layout(target)
     filled_grid = filled.grid_shape(target.size_of(grid))
     ratio = _valid_pixels(source, source_grid) / max(_valid_pixels(target, grid), 1)
@@ -346,15 +484,32 @@ LATLONG_SPHERE_MAX_SAMPLES = 32
 
 
 def adaptive_rate(source: Layout, target: Layout, k: int) -> int:
-    """The most subsamples a side (k_max) a pixel may take, when the rate is automatic: where either layout is a
-    disc, whose rim spreads one direction over a ring, or the source is a cube, whose corner texels are a fifth of
-    its centre's, or the target is a lat-long, whose rows next to a pole are rings, each pixel takes its own rate
-    between k and :data:`lightprobe.maps.resampling.polar.MAX_SAMPLES` (:data:`LATLONG_SPHERE_MAX_SAMPLES` from a lat-long
-    into a mirror ball) (:func:`lightprobe.maps.resampling.fused._rates`). Elsewhere k (a lat-long into a cube: its polar
-    rows are shortened by their reductions). A mirror ball source may take 2k: kept at :data:`SPHERE_MIN_SIDE`
-    pixels for a tiny target, its base rate is high and its outer rings need more again — 128 → angular 16 at 16 a
-    side left its pixels 25–35° from the rim up to 74 % off before the flux correction, more than its capped weights
-    can mend (23 % after); at 32, exact (weights ≤ 21 %). Halved to 64 it had k = 8 and 16 as well."""
+    """The most subsamples a side (k_max) a pixel may take, when the rate is automatic.
+
+    Where either layout is a disc, whose rim spreads one direction over a ring, or the source is a cube, whose corner
+    texels are a fifth of its centre's, or the target is a lat-long, whose rows next to a pole are rings, each pixel
+    takes its own rate between k and :data:`lightprobe.maps.resampling.polar.MAX_SAMPLES`
+    (:data:`LATLONG_SPHERE_MAX_SAMPLES` from a lat-long into a mirror ball)
+    (:func:`lightprobe.maps.resampling.fused._rates`). Elsewhere k (a lat-long into a cube: its polar rows are shortened
+    by their reductions). A mirror ball source may take 2k: kept at :data:`SPHERE_MIN_SIDE` pixels for a tiny target,
+    its base rate is high and its outer rings need more again — 128 → angular 16 at 16 a side left its pixels 25–35°
+    from the rim up to 74 % off before the flux correction, more than its capped weights can mend (23 % after); at 32,
+    exact (weights ≤ 21 %). Halved to 64 it had k = 8 and 16 as well.
+
+    Parameters
+    ----------
+    source : Layout
+        The source's layout as the conversion reads it.
+    target : Layout
+        The layout the kernel fills (cube faces for a cross).
+    k : int
+        The conversion's base rate (:func:`supersampling`).
+
+    Returns
+    -------
+    int
+        k_max, at least ``k``: lookups per side a pixel may take.
+    """
     if source.name == "latlong" and target.name == "sphere":
         return max(k, LATLONG_SPHERE_MAX_SAMPLES)
     if source.name == "sphere":
@@ -521,7 +676,32 @@ class Resampler:
     pixel at k = 3, more where each pixel takes its own rate (:func:`adaptive_rate`) (:attr:`nbytes`; refused
     over the memory budget); :meth:`energy_gains` reads them as a sun in every source pixel. Conversions that
     box-reduce the source first (over 16 source pixels per target pixel) are not cached: calling such a Resampler
-    resamples directly."""
+    resamples directly.
+
+    Parameters
+    ----------
+    layout : str or Layout
+        The source maps' layout, by name or instance.
+    grid : tuple of int
+        The source maps' grid ((H, W), or (6, N, N) for ``cube``).
+    target : str or Layout
+        The target layout, by name or instance.
+    size : int or None, default None
+        The target's size, as :func:`resample` takes it; None (or 0): the default for the source's valid pixels.
+    rotation : numpy.ndarray or None, default None
+        3×3 rotation matrix R in the world frame (light from d comes from R·d), or None.
+    samples : int or None, default None
+        Supersampling rate k, or None for automatic, as :func:`resample` takes it.
+
+    Raises
+    ------
+    LayoutError
+        When a layout name is unknown or ``grid`` does not fit ``layout``.
+    UsageError
+        When ``size`` is negative or not a whole number.
+    BudgetError
+        When the target is over the pixel limit or the weights would exceed the memory budget.
+    """
 
     def __init__(self, layout: str | Layout, grid: tuple[int, ...], target: str | Layout, size: int | None = None, *,
                  rotation: np.ndarray | None = None, samples: int | None = None):
@@ -550,13 +730,15 @@ class Resampler:
 
     @property
     def nbytes(self) -> int:
+        """Bytes of the cached weights (taps, or a lat-long's row and column matrices); 0 when nothing is cached."""
         if self._separable is not None:
             return self._separable.nbytes
         return 0 if self.offsets is None else self.offsets.nbytes + self.idx.nbytes + self.wts.nbytes
 
     def _splice(self, apart: np.ndarray, taps: _Taps, counts: np.ndarray) -> None:
-        """Put the merged taps of the pixels :func:`lightprobe.maps.resampling.fused.footprint_taps` listed apart (sampled
-        round a disc source's rim direction, :func:`lightprobe.maps.resampling.fused.source_rim_taps`) into the CSR arrays."""
+        """Put the merged taps of the pixels :func:`lightprobe.maps.resampling.fused.footprint_taps` listed apart
+        (sampled round a disc source's rim direction, :func:`lightprobe.maps.resampling.fused.source_rim_taps`) into the
+        CSR arrays."""
         merged = np.zeros(taps.source_pixels)
         touched = np.empty(taps.source_pixels, np.int32)
         listed = []
@@ -619,28 +801,56 @@ class Resampler:
                                                                                 tuple(source_grid), omega_t))
 
     def without_flux_correction(self) -> Resampler:
-        """This conversion as it would be without its flux correction (:mod:`lightprobe.maps.resampling.flux`): what the
-        correction removes, for pictures and tests. Shares the weights."""
+        """This conversion as it would be without its flux correction (:mod:`lightprobe.maps.resampling.flux`).
+
+        It shows what the correction removes, for pictures and tests. Shares the weights.
+
+        Returns
+        -------
+        Resampler
+            A shallow copy that skips the flux correction.
+        """
         plain = copy.copy(self)
         plain._flux = None
         return plain
 
     def without_cell_balance(self) -> Resampler:
-        """This conversion as it would be without the balance of a lat-long source's coarsest polar rows
-        (:mod:`lightprobe.maps.resampling.polar_balance`): what the balance removes, for pictures and tests. Shares the
-        weights."""
+        """This conversion as it would be without the balance of a lat-long source's coarsest polar rows.
+
+        The balance is :mod:`lightprobe.maps.resampling.polar_balance`'s; this shows what it removes, for pictures
+        and tests. Shares the weights.
+
+        Returns
+        -------
+        Resampler
+            A shallow copy that skips the balance of the polar rows.
+        """
         plain = copy.copy(self)
         plain._cells = None
         return plain
 
     def energy_gains(self, rim_margin: float | None = None) -> np.ndarray:
-        """For every source pixel, the relative error of ∫L dω that a sun wholly in that pixel takes through this
-        conversion: (Σ_t Ω_t W_ts) / Ω_s − 1, float64 of the source's grid (a cross's as cube faces; NaN where a
-        pixel covers no sphere, and with ``rim_margin`` (degrees) where it lies that near either layout's disc
-        rim direction — one direction spread over a ring of pixels). Exact for every pixel at once — the
-        conversion is linear, so a sun's energy out is its column of the weights weighted by the target's solid
-        angles — where sampling suns finds only the pixels it tries. A source box-reduced first is measured on its
-        reduction: the box keeps each pixel's energy (its Ω-weighted mean), so a pixel's gain is its block's."""
+        """For every source pixel, the relative error of ∫L dω that a sun wholly in that pixel takes.
+
+        It is, through this conversion, (Σ_t Ω_t W_ts) / Ω_s − 1, float64 of the source's grid (a cross's as cube faces;
+        NaN where a pixel covers no sphere, and with ``rim_margin`` (degrees) where it lies that near either layout's
+        disc rim direction — one direction spread over a ring of pixels). Exact for every pixel at once — the conversion
+        is linear, so a sun's energy out is its column of the weights weighted by the target's solid angles — where
+        sampling suns finds only the pixels it tries. A source box-reduced first is measured on its reduction: the box
+        keeps each pixel's energy (its Ω-weighted mean), so a pixel's gain is its block's.
+
+        Parameters
+        ----------
+        rim_margin : float or None, default None
+            Angle in degrees: pixels whose direction lies within it of the source's or the target's rim direction
+            are NaN; None keeps them.
+
+        Returns
+        -------
+        numpy.ndarray
+            float64 relative gains (0: energy kept; 0.01: 1 % too bright), shape of the source's grid ((6, N, N)
+            for a cross source); NaN off the sphere and within ``rim_margin``.
+        """
         layout = CUBE if isinstance(self.layout, Cross) else self.layout
         grid = CUBE.grid_shape(self.layout.size_of(self.grid)) if isinstance(self.layout, Cross) else self.grid
         if self._separable is None and self.offsets is None:
@@ -664,6 +874,23 @@ class Resampler:
         return gains
 
     def __call__(self, env: EnvMap) -> EnvMap:
+        """Convert ``env`` with the cached weights: the same values as :func:`resample` to float32 rounding.
+
+        Parameters
+        ----------
+        env : EnvMap
+            A map of this Resampler's source layout and grid.
+
+        Returns
+        -------
+        EnvMap
+            The converted map in the target layout and size.
+
+        Raises
+        ------
+        LayoutError
+            When ``env`` has another layout or grid.
+        """
         if env.layout != self.layout or env.grid != self.grid:
             raise LayoutError(f"this Resampler converts {self.layout.name} maps of grid {self.grid}, "
                               f"not {env.layout.name} {env.grid}")
@@ -698,9 +925,10 @@ class Resampler:
 
 class _Taps:
     """The footprint taps of a conversion, listed a band of target lines at a time by the compiled kernel
-    (:func:`lightprobe.maps.resampling.fused.footprint_taps`): what a :class:`Resampler` stores, and what :func:`delivered`
-    reads without storing. ``band(first)`` → (counts (n·W,), idx, wts (n·W, max_taps)) for lines first … first+n−1;
-    tap indices are flat source pixels (as the kernel reads them: a cube's balanced texels), then reduced polar rows."""
+    (:func:`lightprobe.maps.resampling.fused.footprint_taps`): what a :class:`Resampler` stores, and what
+    :func:`delivered` reads without storing. ``band(first)`` → (counts (n·W,), idx, wts (n·W, max_taps)) for lines
+    first … first+n−1; tap indices are flat source pixels (as the kernel reads them: a cube's balanced texels), then
+    reduced polar rows."""
 
     def __init__(self, source_layout: Layout, source_grid: tuple[int, ...], target: Layout, size: int, k: int,
                  k_max: int, steps: polar.Steps, rotation):
@@ -750,10 +978,29 @@ class _Taps:
 
 
 def delivered(taps: _Taps, source_grid: tuple[int, ...], omega_t: np.ndarray) -> np.ndarray:
-    """Σ_t Ω_t W_ts for every source pixel s (flat float64, as the kernel reads them): the energy a sun wholly in
-    each pixel ends with. The compiled adjoint of the taps (:func:`lightprobe.maps.resampling.fused.footprint_delivery`), a
-    share of the target's lines on each of :func:`lightprobe.util.limits.threads` threads, each into its own total:
-    nothing the size of the taps is held (a :class:`Resampler` holds them: :func:`_taps_delivery`)."""
+    """Σ_t Ω_t W_ts for every source pixel s (flat float64, as the kernel reads them).
+
+    It is the energy a sun wholly in each pixel ends with. The compiled adjoint of the taps
+    (:func:`lightprobe.maps.resampling.fused.footprint_delivery`), a share of the target's lines on each of
+    :func:`lightprobe.util.limits.threads` threads, each into its own total: nothing the size of the taps is held (a
+    :class:`Resampler` holds them: :func:`_taps_delivery`). The same shares in the same order every time: the same
+    sums.
+
+    Parameters
+    ----------
+    taps : _Taps
+        The conversion's footprint taps (listed by the kernel as they are needed, not stored).
+    source_grid : tuple of int
+        The source's grid, as the kernel reads it.
+    omega_t : numpy.ndarray
+        Solid angle (sr) of every target pixel, flat over the filled layout's lines (a cross as cube faces).
+
+    Returns
+    -------
+    numpy.ndarray
+        float64 (source pixels,): Σ_t Ω_t W_ts per source pixel, flat; taps on a lat-long's reduced polar rows
+        handed on to the pixels they average.
+    """
     n_total = math.prod(source_grid) + taps.reduced_size
     omega_t = np.ascontiguousarray(omega_t, dtype=np.float64)
     threads = min(limits.threads(), max(1, taps.lines // 8))
@@ -781,9 +1028,10 @@ _FLUX_CACHE_BYTES = 256 << 20  # the corrections a process keeps (a batch conver
 
 def _cell_balance(source_grid: tuple[int, int], found: np.ndarray, filled: Layout, grid: tuple[int, ...], k: int,
                   k_max: int, steps: polar.Steps, rotation) -> polar_balance.CellBalance | None:
-    """The balance of a lat-long source's coarsest polar rows in this conversion (:mod:`lightprobe.maps.
-    polar_balance`), or None where it has none; kept for the last pairs of grids. Measured by the compiled adjoint,
-    a pole at a time, on the target pixels by that pole alone and into its balanced rows' cells alone."""
+    """The balance of a lat-long source's coarsest polar rows in this conversion
+    (:mod:`lightprobe.maps.resampling.polar_balance`), or None where it has none; kept for the last pairs of grids.
+    Measured by the compiled adjoint, a pole at a time, on the target pixels by that pole alone and into its balanced
+    rows' cells alone."""
     caps = polar_balance.caps(found, source_grid[-1])
     if not caps:
         return None
@@ -852,12 +1100,12 @@ LATLONG_FLUX_MAX_PIXELS = 1 << 21
 
 
 def _flux_corrects(source_layout: Layout, source_pixels: int, target: Layout) -> bool:
-    """Whether a conversion from ``source_layout`` (``source_pixels`` as read) into ``target`` is flux-corrected
-    (with its rate left automatic): every source but a lat-long; a lat-long into a disc up to
-    :data:`LATLONG_FLUX_MAX_PIXELS`, and into anything when it has fewer rows than the rational pole rows need
-    (:data:`lightprobe.maps.resampling.pole_rows.MIN_HEIGHT`: its first rows keep the plain spline, a sun there +22–25 %).
-    Into a lat-long or a cube a larger lat-long keeps a sun's energy by its own construction — the polar rows'
-    reductions and rational weights, measured in tests/test_resample.py."""
+    """Whether a conversion from ``source_layout`` (``source_pixels`` as read) into ``target`` is flux-corrected (with
+    its rate left automatic): every source but a lat-long; a lat-long into a disc up to :data:`LATLONG_FLUX_MAX_PIXELS`,
+    and into anything when it has fewer rows than the rational pole rows need
+    (:data:`lightprobe.maps.resampling.pole_rows.MIN_HEIGHT`: its first rows keep the plain spline, a sun there
+    +22–25 %). Into a lat-long or a cube a larger lat-long keeps a sun's energy by its own construction — the polar
+    rows' reductions and rational weights, measured in tests/test_resample.py."""
     if source_layout.name != "latlong":
         return True
     if math.isqrt(source_pixels // 2) < pole_rows.MIN_HEIGHT:  # a lat-long of H rows has 2H² pixels
@@ -910,11 +1158,32 @@ def _axes(lay: Layout) -> np.ndarray:
 
 def reference_resample(source: EnvMap, target: Layout, grid: tuple[int, ...], k: int,
                        rotation: np.ndarray | None) -> EnvMap:
-    """The numpy formulation of :func:`resample` (k×k lookups per target pixel, in chunks; a lat-long target's pole
-    rows in the kernel's cells, a cube target's edge terms as the kernel's): the reference the compiled kernel is
-    tested against, and the path for layouts it does not know. Its lookups are the layout's
+    """The numpy formulation of :func:`resample`: the reference the compiled kernel is tested against.
+
+    k×k lookups per target pixel, in chunks; a lat-long target's pole rows in the kernel's cells, a cube target's edge
+    terms as the kernel's. It is also the path for layouts the kernel does not know. Its lookups are the layout's
     plain B-spline: near a lat-long source's poles it lacks the kernel's rational row weights (the tests compare the
-    two on sources under :data:`lightprobe.maps.resampling.pole_rows.MIN_HEIGHT` rows, where the kernel has none either)."""
+    two on sources under :data:`lightprobe.maps.resampling.pole_rows.MIN_HEIGHT` rows, where the kernel has none
+    either).
+
+    Parameters
+    ----------
+    source : EnvMap
+        The map to convert, as the conversion reads it (no box reduction is made here).
+    target : Layout
+        The target layout, an instance.
+    grid : tuple of int
+        The target's grid (``target.grid_shape(size)``).
+    k : int
+        Lookups per side of a target pixel.
+    rotation : numpy.ndarray or None
+        3×3 rotation matrix R in the world frame (the target at direction d shows the source at Rᵀd), or None.
+
+    Returns
+    -------
+    EnvMap
+        The converted map in ``target`` of ``grid`` (float32 radiance; 0 on pixels off the sphere).
+    """
     if isinstance(target, Cross):  # filled as cube faces and rearranged, as the kernel does (edge terms are a face's)
         faces = reference_resample(source, CUBE, CUBE.grid_shape(target.size_of(grid)), k, rotation)
         return EnvMap(owned(target.from_cube(faces.data)), target)
@@ -959,8 +1228,8 @@ def reference_resample(source: EnvMap, target: Layout, grid: tuple[int, ...], k:
 def _add_cube_edge_terms(lookup, face: np.ndarray, row: np.ndarray, col: np.ndarray, h: int, w: int, rotation,
                          total: np.ndarray, wsum: np.ndarray) -> None:
     """Add to cube pixels' weighted sums ``total`` (p, 3) and weight sums ``wsum`` (p,), at k × k plain cells, the
-    kernel's edge terms (:func:`lightprobe.maps.resampling.fused._cube_edge_terms`): for each side of a pixel on its face's
-    side, lookups at the side's ends weighted ± t·(dω/(du dv))/48."""
+    kernel's edge terms (:func:`lightprobe.maps.resampling.fused._cube_edge_terms`): for each side of a pixel on its
+    face's side, lookups at the side's ends weighted ± t·(dω/(du dv))/48."""
     for side in range(4):
         across = float(side % 2)
         on = (col == (0 if side == 0 else w - 1)) if side < 2 else (row == (0 if side == 2 else h - 1))
@@ -1008,8 +1277,29 @@ RESAMPLE_BYTES_PER_TARGET_PIXEL_DEFAULT = 16
 
 
 def check_size(layout: Layout, size: int) -> int:
-    """Refuse sizes whose pixel count would be absurd before allocating anything; returns the pixel count (exact:
-    Python integers, so no size can overflow)."""
+    """Refuse sizes whose pixel count would be absurd before allocating anything; returns the pixel count.
+
+    The count is exact: Python integers, so no size can overflow.
+
+    Parameters
+    ----------
+    layout : Layout
+        The layout the size is for.
+    size : int
+        Its size (image height, or face edge for cube layouts); a positive whole number (a numpy integer too).
+
+    Returns
+    -------
+    int
+        The number of pixels of the layout's grid for ``size``.
+
+    Raises
+    ------
+    UsageError
+        When ``size`` is not a whole number or is under 1.
+    BudgetError
+        When the pixel count is over the pixel limit (``LIGHTPROBE_MAX_PIXELS``).
+    """
     if not isinstance(size, (int, np.integer)) or size < 1:
         raise UsageError(f"size must be a positive whole number, got {size!r}")
     n = math.prod(int(v) for v in layout.grid_shape(int(size)))
@@ -1018,11 +1308,29 @@ def check_size(layout: Layout, size: int) -> int:
 
 
 def resample_memory(source_pixels: int, target_pixels: int, target: Layout, source: Layout | None = None) -> int:
-    """Estimated peak memory (bytes) of :func:`resample` from ``source_pixels`` to ``target_pixels`` of ``target``
-    (beyond the source map itself); a ``source`` whose conversions are flux-corrected (:func:`_flux_corrects`: all
-    but a lat-long's, save small ones into discs), or not named, adds its correction's deliveries, flows and
-    weights (:func:`_flux_stencil`: measured 75–120 B a source pixel, more where a face's side is just past a power
-    of two)."""
+    """Estimated peak memory (bytes) of :func:`resample` beyond the source map itself.
+
+    From ``source_pixels`` to ``target_pixels`` of ``target``; a ``source`` whose conversions are flux-corrected
+    (:func:`_flux_corrects`: all but a lat-long's, save small ones into discs), or not named, adds its correction's
+    deliveries, flows and weights (:func:`_flux_stencil`: measured 75–120 B a source pixel, more where a face's side is
+    just past a power of two).
+
+    Parameters
+    ----------
+    source_pixels : int
+        Pixels of the source map's grid.
+    target_pixels : int
+        Pixels of the target's grid.
+    target : Layout
+        The target layout (a disc target needs more a pixel: its validity mask).
+    source : Layout or None, default None
+        The source's layout; None counts the flux correction's memory, as the worst case.
+
+    Returns
+    -------
+    int
+        Bytes: per source pixel 24 (+ 160 with the flux correction), per target pixel 16 (20 for discs).
+    """
     per_target = RESAMPLE_BYTES_PER_TARGET_PIXEL.get(target.name, RESAMPLE_BYTES_PER_TARGET_PIXEL_DEFAULT)
     per_source = RESAMPLE_BYTES_PER_SOURCE_PIXEL
     if source is None or _flux_corrects(source, source_pixels, _face_layout(target)):
