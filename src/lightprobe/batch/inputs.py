@@ -1,5 +1,5 @@
 """The batch's inputs: files, shell globs (``**`` recursive), or text files listing one path per line (``@list``
-or any ``.txt``/``.lst`` file), expanded into absolute paths in a stable order, each once."""
+or any ``.txt``/``.lst``/``.list`` file), expanded into absolute paths in a stable order, each once."""
 
 from __future__ import annotations
 
@@ -32,9 +32,31 @@ def _from_list(path: Path) -> list[str]:
 
 
 def expand_inputs(items: list[str]) -> list[str]:
-    """Absolute paths of every input, in the order given (globs sorted), duplicates dropped. A glob that matches
-    nothing, or an empty list, is refused with one line; a named file that does not exist is kept (the batch
-    records its error)."""
+    """Absolute paths of every input, in the order given (globs sorted), duplicates dropped.
+
+    A glob that matches nothing, or an empty list, is refused with one line; a named file that does not exist is kept
+    (the batch records its error).
+
+    Parameters
+    ----------
+    items : list of str
+        Files; shell globs (``**`` recursive; only the files they match); or lists of paths, one a line: ``@FILE``
+        or an existing file ending in ``.txt``, ``.lst`` or ``.list``. In a list, blank lines and lines starting
+        with ``#`` are skipped and relative paths are relative to the list's folder.
+
+    Returns
+    -------
+    list of str
+        Absolute paths (:func:`os.path.abspath`: symbolic links not resolved), each once, first occurrence kept.
+
+    Raises
+    ------
+    UsageError
+        No inputs, a glob or list that names no file, a list that is unreadable or over :data:`MAX_LIST_BYTES`, or
+        over :data:`MAX_INPUTS` inputs.
+    InputError
+        A list is missing or not a regular file.
+    """
     out: list[str] = []
     for item in items:
         if item.startswith("@") or (Path(item).suffix.lower() in LIST_SUFFIXES and Path(item).is_file()):

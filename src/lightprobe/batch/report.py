@@ -38,7 +38,26 @@ def _svg_histogram(values, title: str, bins, log_x: bool = False) -> str:
 
 
 def write_report(out: Path) -> Path:
-    """Write ``out``/report.html from ``results.parquet`` and ``errors.parquet``."""
+    """Write ``out``/report.html from ``results.parquet`` and ``errors.parquet``.
+
+    Thumbnails of the first :data:`MAX_THUMBNAILS` rows are linked where the batch wrote them; ``errors.parquet`` is
+    optional. The file is written atomically.
+
+    Parameters
+    ----------
+    out : Path
+        A finished batch folder (one holding ``results.parquet``).
+
+    Returns
+    -------
+    Path
+        ``out``/report.html.
+
+    Raises
+    ------
+    UsageError
+        ``out`` holds no ``results.parquet``, or a table there is not a lightprobe batch table.
+    """
     from .table import read_finished
 
     out = Path(out)

@@ -32,6 +32,33 @@ DASK_TIMEOUT = 10.0
 
 @dataclass
 class Summary:
+    """What a batch run did: counts, time and memory, updated after every result and passed to ``progress``.
+
+    Parameters
+    ----------
+    total : int
+        Inputs given.
+    already : int
+        Inputs already in the table from an earlier run (``--resume``).
+    done : int
+        Rows added by this run.
+    skipped : int
+        Inputs whose content is already in the table (another path with the same bytes).
+    failed : int
+        Errors recorded by this run.
+    seconds : float
+        Seconds since this run started processing.
+    peak_rss : int
+        The largest peak resident memory any worker reported, bytes.
+    rows : int
+        Rows in ``results.parquet`` after consolidation.
+    errors : int
+        Rows in ``errors.parquet`` after consolidation.
+    workers : int
+        The executor's worker count.
+    executor : str
+        The executor's name.
+    """
     total: int = 0          # inputs given
     already: int = 0        # already in the table from an earlier run (--resume)
     done: int = 0           # rows added by this run
@@ -46,6 +73,7 @@ class Summary:
 
     @property
     def throughput(self) -> float:
+        """Inputs finished by this run (rows and errors) per second; 0 before any time has passed."""
         return (self.done + self.failed) / self.seconds if self.seconds > 0 else 0.0
 
 
@@ -97,7 +125,13 @@ def _died(path: str) -> dict:
 
 
 class LocalPool:
-    """``workers`` processes of this machine (spawned: fresh interpreters, nothing inherited)."""
+    """``workers`` processes of this machine (spawned: fresh interpreters, nothing inherited).
+
+    Parameters
+    ----------
+    workers : int
+        Worker processes; at most 2 × ``workers`` inputs are in flight.
+    """
 
     name = "local process pool"
 
@@ -105,6 +139,29 @@ class LocalPool:
         self.workers = workers
 
     def results(self, paths: list[str], options: JobOptions, out: Path, skip: frozenset):
+        """Run :func:`lightprobe.batch.task.process` on every path in worker processes, yielding each result.
+
+        Results come in the order they finish, not the order given. The workers run with one BLAS and one kernel thread
+        each (:data:`WORKER_ENVIRONMENT`, set in this process while the generator runs and restored after). When a
+        worker dies the pool is restarted and the inputs it held go back to the front of the queue; an input in flight
+        at :data:`MAX_ATTEMPTS` deaths yields a ``WorkerDied`` error instead.
+
+        Parameters
+        ----------
+        paths : list of str
+            The inputs, read by the workers themselves.
+        options : JobOptions
+            The job options for every input.
+        out : Path
+            The batch folder; artifacts are written under its ``maps/``.
+        skip : frozenset
+            SHA-256 (hex) of contents already in the table: those inputs yield a skip.
+
+        Yields
+        ------
+        dict
+            One result per path (:func:`lightprobe.batch.task.process`): ``kind`` "row", "error" or "skipped".
+        """
         import multiprocessing
 
         pending, attempts = deque(paths), {}
@@ -157,12 +214,30 @@ class LocalPool:
                     pending.appendleft(path)
 
     def close(self) -> None:
+        """Nothing to release: each :meth:`LocalPool.results` shuts its own pools down."""
         pass
 
 
 class DaskPool:
-    """Dask distributed: an existing scheduler, or a ``LocalCluster`` of ``local`` single-threaded worker processes on
-    loopback. Workers read their inputs themselves; only paths go out and rows come back."""
+    """Dask distributed: an existing scheduler, or a ``LocalCluster`` of ``local`` single-threaded worker processes.
+
+    The local cluster listens on loopback. Workers read their inputs themselves; only paths go out and rows come back.
+
+    Parameters
+    ----------
+    scheduler : str or None
+        Address of a running scheduler (e.g. ``tcp://host:8786``), used when ``local`` is not given.
+    local : int or None
+        Start a local cluster of this many worker processes on 127.0.0.1 (one thread each, no dashboard, with
+        :data:`WORKER_ENVIRONMENT`) and use it.
+    timeout : float
+        Seconds to wait for the scheduler. Default :data:`DASK_TIMEOUT` (10).
+
+    Raises
+    ------
+    UsageError
+        dask.distributed is not installed, or the scheduler cannot be reached within ``timeout``.
+    """
 
     name = "Dask distributed"
 
@@ -187,6 +262,27 @@ class DaskPool:
         self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
 
     def results(self, paths: list[str], options: JobOptions, out: Path, skip: frozenset):
+        """Submit :func:`lightprobe.batch.task.process` for each path, yielding each result as it completes.
+
+        At most 4 × ``workers`` tasks are in flight. ``skip`` is scattered to every worker once. A task that fails
+        inside Dask (KilledWorker after Dask's own retries, a lost worker) yields a ``WorkerDied`` error for its path.
+
+        Parameters
+        ----------
+        paths : list of str
+            The inputs, opened by the workers at these paths.
+        options : JobOptions
+            The job options for every input.
+        out : Path
+            The batch folder, which the workers write artifacts into at this path.
+        skip : frozenset
+            SHA-256 (hex) of contents already in the table: those inputs yield a skip.
+
+        Yields
+        ------
+        dict
+            One result per path, in the order they complete.
+        """
         from dask.distributed import as_completed
 
         skip_future = self.client.scatter([skip], broadcast=True)[0]  # one object, not one per hash
@@ -212,6 +308,7 @@ class DaskPool:
                 queue.add(new)
 
     def close(self) -> None:
+        """Close the client and the local cluster, if any; closing is best effort (its errors are ignored)."""
         for obj in (getattr(self, "client", None), self.cluster):
             if obj is not None:
                 try:
@@ -222,8 +319,27 @@ class DaskPool:
 
 # ---- the driver -----------------------------------------------------------------------------------------------------
 def check_out(out: Path, options: JobOptions, resume: bool, force: bool) -> None:
-    """Refuse an unusable ``--out`` before any work: not a folder, not writable, a batch there without
-    ``--resume``, or ``--resume`` on a batch of another lightprobe version (unless ``force``) or other options."""
+    """Refuse an unusable ``--out`` before any work.
+
+    Not a folder, not writable, a batch there without ``--resume``, or ``--resume`` on a batch of another lightprobe
+    version (unless ``force``) or other options. A folder with no batch may hold only ``parts`` and ``maps``.
+
+    Parameters
+    ----------
+    out : Path
+        The batch folder, existing or to be made.
+    options : JobOptions
+        The options of this run, compared with those of a batch already there.
+    resume : bool
+        Continue the batch already in ``out``.
+    force : bool
+        Resume even a batch written by another lightprobe version, batch format or schema version.
+
+    Raises
+    ------
+    UsageError
+        ``out`` cannot be used, with what to do instead.
+    """
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out {out} is a file, not a folder")
@@ -283,8 +399,45 @@ def _sweep_artifacts(out: Path) -> None:
 def run_batch(inputs: list[str], out: Path, options: JobOptions, executor, resume: bool = False,
               force: bool = False, chunk_rows: int = CHUNK_ROWS, chunk_seconds: float = CHUNK_SECONDS,
               progress=None) -> Summary:
-    """Process ``inputs`` into ``out`` with ``executor`` (a :class:`LocalPool` or :class:`DaskPool`); returns the
-    summary. ``progress(summary)`` is called after every result."""
+    """Process ``inputs`` into ``out`` with ``executor``; returns the summary.
+
+    The executor is a :class:`LocalPool` or :class:`DaskPool`. ``progress(summary)`` is called after every result.
+    Results are committed as parts every ``chunk_rows`` results or ``chunk_seconds``, whichever comes first, and once
+    more at the end; then ``results.parquet`` and ``errors.parquet`` are consolidated from every part.
+
+    Parameters
+    ----------
+    inputs : list of str
+        The input paths (:func:`lightprobe.batch.inputs.expand_inputs`); those already recorded in ``out`` are not
+        sent again.
+    out : Path
+        The batch folder, made if needed; its manifest is written with this run's versions.
+    options : JobOptions
+        The job options for every input.
+    executor : LocalPool or DaskPool
+        Runs the tasks; not closed here.
+    resume : bool
+        Continue the batch already in ``out``. Default False.
+    force : bool
+        With ``resume``, accept a batch of another lightprobe version. Default False.
+    chunk_rows : int
+        Commit once this many rows and errors wait. Default :data:`CHUNK_ROWS` (64).
+    chunk_seconds : float
+        Commit, as a result arrives, once this many seconds have passed since the last commit. Default
+        :data:`CHUNK_SECONDS` (5).
+    progress : callable or None
+        Called with the :class:`Summary` after every result. Default None.
+
+    Returns
+    -------
+    Summary
+        The run's counts, seconds and peak memory, with the rows and errors of the consolidated tables.
+
+    Raises
+    ------
+    UsageError
+        ``out`` cannot be used (:func:`check_out`) or made, or a part in it is damaged.
+    """
     out = Path(out)
     check_out(out, options, resume, force)
     try:

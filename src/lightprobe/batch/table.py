@@ -45,6 +45,27 @@ def _pa():
 
 
 def row_schema(order: int | None):
+    """The Arrow schema of ``results.parquet`` and of the rows parts (schema version 1).
+
+    Its columns are those the module docstring lists.
+
+    Parameters
+    ----------
+    order : int or None
+        SH order of the ``sh`` column, a fixed-size list of 3(order + 1)² float64 (l(l+1)+m × RGB); None (no ``sh``
+        job): a list of any size, and the metadata's ``lightprobe.sh_order`` empty.
+
+    Returns
+    -------
+    pyarrow.Schema
+        The schema, its metadata naming the format, the schema version, the SH order, frame (world), quantity
+        (radiance) and basis.
+
+    Raises
+    ------
+    UsageError
+        pyarrow is not installed.
+    """
     pa, _ = _pa()
     vec3 = pa.list_(pa.float64(), 3)
     light = pa.struct([("direction", vec3), ("angular_radius_deg", pa.float64()), ("solid_angle_sr", pa.float64()),
@@ -67,6 +88,19 @@ def row_schema(order: int | None):
 
 
 def error_schema():
+    """The Arrow schema of ``errors.parquet`` and of the errors parts.
+
+    Returns
+    -------
+    pyarrow.Schema
+        ``path``, ``sha256``, ``size``, ``error_class``, ``message``, ``worker`` and ``lightprobe_version``, with the
+        format and schema version in its metadata.
+
+    Raises
+    ------
+    UsageError
+        pyarrow is not installed.
+    """
     pa, _ = _pa()
     return pa.schema([("path", pa.string()), ("sha256", pa.string()), ("size", pa.int64()),
                       ("error_class", pa.string()), ("message", pa.string()), ("worker", pa.string()),
@@ -76,6 +110,18 @@ def error_schema():
 
 # ---- the manifest -----------------------------------------------------------------------------------------------
 def manifest(options: dict) -> dict:
+    """The manifest ``batch.json`` of a batch made with ``options``.
+
+    Parameters
+    ----------
+    options : dict
+        The job options, as :meth:`lightprobe.batch.task.JobOptions.as_dict` gives them.
+
+    Returns
+    -------
+    dict
+        Format, batch format version, schema version, this lightprobe's version and the options.
+    """
     from .. import __version__
 
     return {"format": FORMAT, "version": VERSION, "schema_version": SCHEMA_VERSION, "lightprobe": __version__,
@@ -83,6 +129,23 @@ def manifest(options: dict) -> dict:
 
 
 def read_manifest(out: Path) -> dict | None:
+    """The manifest of the batch in ``out``, or None when there is none.
+
+    Parameters
+    ----------
+    out : Path
+        The batch folder; its ``batch.json`` is read.
+
+    Returns
+    -------
+    dict or None
+        The manifest; None when ``batch.json`` does not exist.
+
+    Raises
+    ------
+    UsageError
+        ``batch.json`` is unreadable, not JSON, or not a lightprobe batch manifest.
+    """
     try:
         doc = json.loads((out / "batch.json").read_text())
     except FileNotFoundError:
@@ -96,6 +159,15 @@ def read_manifest(out: Path) -> dict | None:
 
 
 def write_manifest(out: Path, doc: dict) -> None:
+    """Write ``doc`` as ``out``/batch.json, atomically (:func:`lightprobe.util.files.write_text`).
+
+    Parameters
+    ----------
+    out : Path
+        The batch folder, which must exist.
+    doc : dict
+        The manifest (:func:`manifest`), written as indented JSON.
+    """
     from ..util.files import write_text
 
     write_text(out / "batch.json", json.dumps(doc, indent=1) + "\n")
@@ -103,7 +175,23 @@ def write_manifest(out: Path, doc: dict) -> None:
 
 # ---- parts --------------------------------------------------------------------------------------------------------
 class Parts:
-    """The committed chunks of one batch folder, and the writer of new ones."""
+    """The committed chunks of one batch folder, and the writer of new ones.
+
+    Made on a folder, it removes the temporary files of parts that were being written when a driver died (never
+    committed), and numbers new parts after the highest committed one.
+
+    Parameters
+    ----------
+    out : Path
+        The batch folder; its ``parts/`` folder is made if needed.
+    order : int or None
+        SH order of the rows' ``sh`` column (:func:`row_schema`); None without the ``sh`` job.
+
+    Raises
+    ------
+    UsageError
+        ``parts/`` holds a file that is not a part this batch wrote (nor a hidden one).
+    """
 
     def __init__(self, out: Path, order: int | None):
         self.folder = out / "parts"
@@ -122,7 +210,20 @@ class Parts:
         self.sequence = 1 + max(numbers, default=0)
 
     def commit(self, kind: str, rows: list[dict]) -> Path | None:
-        """Write ``rows`` as one part (``kind`` rows or errors): to a temporary name, fsync, rename."""
+        """Write ``rows`` as one part (``kind`` rows or errors): to a temporary name, fsync, rename.
+
+        Parameters
+        ----------
+        kind : str
+            ``rows`` (with :func:`row_schema`) or ``errors`` (with :func:`error_schema`).
+        rows : list of dict
+            One dict per input; keys outside the schema are ignored, missing ones are null.
+
+        Returns
+        -------
+        Path or None
+            The committed part, ``parts/KIND-NNNNNN-xxxxxxxx.parquet``; None when ``rows`` is empty (nothing written).
+        """
         if not rows:
             return None
         pa, pq = _pa()
@@ -139,9 +240,26 @@ class Parts:
         return self.folder / name
 
     def read(self, kind: str):
-        """Every committed part of ``kind`` as one table (empty with the schema when none). A part that does not
-        read back with the schema — parts are renamed into place whole, so only something outside the batch
-        damages one — stops the run with one line naming it."""
+        """Every committed part of ``kind`` as one table (empty with the schema when none).
+
+        A part that does not read back with the schema — parts are renamed into place whole, so only something outside
+        the batch damages one — stops the run with one line naming it.
+
+        Parameters
+        ----------
+        kind : str
+            ``rows`` or ``errors``.
+
+        Returns
+        -------
+        pyarrow.Table
+            The parts' rows concatenated in the order of their names (their commit order).
+
+        Raises
+        ------
+        UsageError
+            A part is damaged; the message says to move it out and resume.
+        """
         pa, _ = _pa()
         schema = row_schema(self.order) if kind == "rows" else error_schema()
         tables = [_read_checked(path, lambda found, s=schema: s, "is damaged", "move it out of the folder and "
@@ -151,9 +269,28 @@ class Parts:
 
 
 def read_finished(path: Path, kind: str):
-    """A consolidated ``results.parquet`` (``kind`` "rows") or ``errors.parquet`` ("errors"), checked against its
-    schema (the SH order from the file's own metadata): a :class:`UsageError` naming the file when it is not one
-    this batch format writes."""
+    """A consolidated ``results.parquet`` or ``errors.parquet``, checked against its schema.
+
+    ``results.parquet`` with ``kind`` "rows", ``errors.parquet`` with "errors"; the SH order of the rows' schema comes
+    from the file's own metadata: a :class:`UsageError` naming the file when it is not one this batch format writes.
+
+    Parameters
+    ----------
+    path : Path
+        The Parquet file.
+    kind : str
+        ``rows`` for ``results.parquet``; anything else reads with the errors' schema.
+
+    Returns
+    -------
+    pyarrow.Table
+        The table, read with the schema.
+
+    Raises
+    ------
+    UsageError
+        The file is not a lightprobe batch table (a column missing or of another type, unreadable, …).
+    """
     return _read_checked(path, lambda found: row_schema(_order_of(found)) if kind == "rows" else error_schema(),
                          "is not a lightprobe batch table", "rerun the batch with --resume, which writes it again "
                          "from its parts")
@@ -204,15 +341,50 @@ def _fsync_folder(folder: Path) -> None:
 
 
 def done_keys(parts: Parts) -> tuple[set[str], set[str]]:
-    """Paths already recorded (rows or errors) and content hashes already in the rows."""
+    """Paths already recorded (rows or errors) and content hashes already in the rows.
+
+    Parameters
+    ----------
+    parts : Parts
+        The batch folder's committed parts.
+
+    Returns
+    -------
+    paths : set of str
+        Input paths with a committed row or error.
+    hashes : set of str
+        SHA-256 (hex) of the inputs with a committed row.
+
+    Raises
+    ------
+    UsageError
+        A part is damaged.
+    """
     rows, errors = parts.read("rows"), parts.read("errors")
     paths = set(rows.column("path").to_pylist()) | set(errors.column("path").to_pylist())
     return paths, set(rows.column("sha256").to_pylist())
 
 
 def consolidate(out: Path, parts: Parts) -> tuple[int, int]:
-    """Write ``results.parquet`` and ``errors.parquet`` from the parts: each input once (rows by content hash, first
-    committed kept; errors by path, and none for a path that has a row), sorted by path. Atomic each."""
+    """Write ``results.parquet`` and ``errors.parquet`` from the parts, each input once.
+
+    Rows are kept by content hash (the first committed kept), errors by path, and none for a path that has a row;
+    both sorted by path. Each file is written to a temporary name and renamed (atomic each).
+
+    Parameters
+    ----------
+    out : Path
+        The batch folder, where both files are written.
+    parts : Parts
+        Its committed parts.
+
+    Returns
+    -------
+    rows : int
+        Rows written to ``results.parquet``.
+    errors : int
+        Rows written to ``errors.parquet``.
+    """
     import pyarrow.compute as pc
 
     _, pq = _pa()

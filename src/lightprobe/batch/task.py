@@ -27,7 +27,22 @@ RADIANCE_SIZE = 64
 
 @dataclass(frozen=True)
 class JobOptions:
-    """The options every input is processed with (the same for all, recorded in the batch's manifest)."""
+    """The options every input is processed with (the same for all, recorded in the batch's manifest).
+
+    Parameters
+    ----------
+    jobs : tuple of str
+        The jobs to run after reading, in this order, among :data:`JOBS`: ``sh``, ``lights``, ``irradiance``,
+        ``radiance``, ``thumbnail``. Default :data:`DEFAULT_JOBS` (sh, lights, thumbnail).
+    order : int
+        SH order of the ``sh`` and ``irradiance`` jobs. Default 2.
+    brdf : str
+        BRDF spec of the ``radiance`` job (:func:`lightprobe.glossy.brdf.parse_brdf`). Default ``ggx:alpha=0.2``.
+    radiance_views : int
+        Geodesic views of the ``radiance`` job: 12 (default), 42 or 162.
+    radiance_size : int
+        Texels on a side of each radiance map. Default :data:`RADIANCE_SIZE` (64).
+    """
 
     jobs: tuple[str, ...] = DEFAULT_JOBS
     order: int = 2
@@ -36,13 +51,38 @@ class JobOptions:
     radiance_size: int = RADIANCE_SIZE
 
     def as_dict(self) -> dict:
+        """The options as a plain dict, as the manifest records them.
+
+        Returns
+        -------
+        dict
+            Every field by name, ``jobs`` as a list (JSON-ready).
+        """
         d = asdict(self)
         d["jobs"] = list(self.jobs)
         return d
 
 
 def file_digest(path: Path) -> tuple[str, int]:
-    """sha256 (hex) and size of a file."""
+    """sha256 (hex) and size of a file.
+
+    Parameters
+    ----------
+    path : Path
+        A regular file, read in 1 MiB blocks.
+
+    Returns
+    -------
+    digest : str
+        The SHA-256 of its bytes, 64 hex digits.
+    size : int
+        Its size in bytes.
+
+    Raises
+    ------
+    OSError
+        The file cannot be read, or is not a regular file.
+    """
     from ..util.files import digest_file
 
     h = hashlib.sha256()
@@ -51,6 +91,20 @@ def file_digest(path: Path) -> tuple[str, int]:
 
 
 def artifact_folder(out: Path, digest: str) -> Path:
+    """Where an input's artifacts go: ``out``/maps/<digest[:2]>/<digest>.
+
+    Parameters
+    ----------
+    out : Path
+        The batch folder.
+    digest : str
+        The SHA-256 (hex) of the input's bytes (:func:`file_digest`).
+
+    Returns
+    -------
+    Path
+        The folder; not created here.
+    """
     return out / "maps" / digest[:2] / digest
 
 
@@ -61,8 +115,31 @@ def _limit_threads() -> None:
 
 
 def process(path: str, options: JobOptions, out: str, skip: frozenset = frozenset()) -> dict:
-    """One input → ``{"kind": "row" | "error" | "skipped", …}`` (see :mod:`lightprobe.batch.table` for the row's
-    fields). ``skip``: content hashes already in the table."""
+    """One input → ``{"kind": "row" | "error" | "skipped", …}``; ``skip``: content hashes already in the table.
+
+    See :mod:`lightprobe.batch.table` for the row's fields. It never raises for a bad input: whatever the file
+    provokes (a corrupt, truncated or hostile file, or running out of memory) is one error row. It sets
+    ``LIGHTPROBE_THREADS`` to 1 in this process: one kernel thread per worker.
+
+    Parameters
+    ----------
+    path : str
+        The input file, read by this process.
+    options : JobOptions
+        The jobs and their options.
+    out : str
+        The batch folder; artifacts are written atomically under ``maps/<sha256[:2]>/<sha256>/``.
+    skip : frozenset
+        SHA-256 (hex) of contents already in the table: such an input is hashed and skipped. Default empty.
+
+    Returns
+    -------
+    dict
+        ``kind`` "row": the row's fields with ``seconds``, ``peak_rss`` (this process's peak resident bytes so far),
+        ``worker`` (host:pid) and ``warnings``; "error": ``path``, ``sha256`` and ``size`` (None when unreadable),
+        ``error_class``, ``message`` (one line) and ``worker``; "skipped": ``path``, ``sha256``, ``size`` and
+        ``worker``.
+    """
     _limit_threads()
     t0 = time.perf_counter()
     base = {"path": path, "worker": f"{socket.gethostname()}:{os.getpid()}"}

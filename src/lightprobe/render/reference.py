@@ -39,8 +39,17 @@ LLVM_LIBRARIES = ("/usr/lib/x86_64-linux-gnu/libLLVM-19.so", "/usr/lib/x86_64-li
 
 
 def llvm19() -> str | None:
-    """Path of an LLVM 19 shared library, if installed. Dr.Jit's LLVM backend crashes the process (an LLVM abort,
-    not an exception) with older LLVMs such as Debian's 15, so the LLVM variant is used only with this one."""
+    """Path of an LLVM 19 shared library, if installed.
+
+    Dr.Jit's LLVM backend crashes the process (an LLVM abort, not an exception) with older LLVMs such as Debian's 15,
+    so the LLVM variant is used only with this one.
+
+    Returns
+    -------
+    str or None
+        ``DRJIT_LIBLLVM_PATH`` when that variable is set (taken as given), else the first of
+        :data:`LLVM_LIBRARIES` that exists, else None.
+    """
     import os
 
     explicit = os.environ.get("DRJIT_LIBLLVM_PATH")
@@ -50,8 +59,27 @@ def llvm19() -> str | None:
 
 
 def mitsuba(variant: str | None = None):
-    """The ``mitsuba`` module with an RGB variant set: ``llvm_ad_rgb`` (vectorised) when an LLVM 19 library is
-    there, ``scalar_rgb`` otherwise (or the ``variant`` asked for)."""
+    """The ``mitsuba`` module with an RGB variant set.
+
+    ``llvm_ad_rgb`` (vectorised) when an LLVM 19 library is there, ``scalar_rgb`` otherwise (or the ``variant``
+    asked for). With a library found, ``DRJIT_LIBLLVM_PATH`` is set to it in this process's environment unless it is
+    set already.
+
+    Parameters
+    ----------
+    variant : str or None
+        The Mitsuba variant to set (e.g. ``scalar_rgb``); None (default): chosen as above.
+
+    Returns
+    -------
+    module
+        The imported ``mitsuba`` module, its variant set.
+
+    Raises
+    ------
+    LightprobeError
+        Mitsuba is not installed (the optional extra ``reference``), or the variant does not start.
+    """
     import os
 
     library = llvm19()
@@ -71,7 +99,19 @@ def mitsuba(variant: str | None = None):
 
 
 def mitsuba_latlong(env: EnvMap) -> np.ndarray:
-    """The environment as the lat-long image Mitsuba's ``envmap`` expects (columns rolled by half a turn)."""
+    """The environment as the lat-long image Mitsuba's ``envmap`` expects (columns rolled by half a turn).
+
+    Parameters
+    ----------
+    env : EnvMap
+        The environment, radiance, world frame, any layout (converted to lat-long, energy-conserving, if it is not one).
+
+    Returns
+    -------
+    numpy.ndarray
+        (H, W, 3) lat-long pixels, radiance, their columns rolled by W/2: a 180° turn about +Y, the same mapping as
+        Mitsuba's.
+    """
     if env.layout is not LATLONG:
         env = env.to(LATLONG)
     return np.roll(env.data, env.grid[1] // 2, axis=1)
@@ -81,7 +121,15 @@ def write_ply(path: Path, mesh: MeshInstance) -> None:
     """Binary PLY with float32 positions, normals and (if any) UVs, int32 triangle indices.
 
     UVs are written with v flipped: lightprobe keeps OBJ/OpenGL's convention (v = 0 at the bottom of the image),
-    Mitsuba's bitmap lookup puts v = 0 at the top (its OBJ loader flips v the same way)."""
+    Mitsuba's bitmap lookup puts v = 0 at the top (its OBJ loader flips v the same way).
+
+    Parameters
+    ----------
+    path : Path
+        The file to write (replaced if it exists; not an atomic write).
+    mesh : MeshInstance
+        The mesh: vertices and vertex normals in the world frame, faces, UVs if any.
+    """
     columns = [mesh.vertices, mesh.normals]
     props = ["x", "y", "z", "nx", "ny", "nz"]
     if mesh.uv is not None:
@@ -107,11 +155,33 @@ def _reflectance(mesh: MeshInstance, folder: Path, index: int) -> dict:
 
 
 def mitsuba_bsdf(mesh: MeshInstance, folder: Path, index: int) -> dict:
-    """The Mitsuba 3 BSDF of a mesh's material, the same parameters: the albedo (or texture) as ``diffuse``; a
-    Lambert BRDF as ``diffuse``; GGX with a conductor's η, k as ``roughconductor`` (GGX, same α, η, k per RGB
-    channel), GGX without Fresnel (f0 = 1) as ``roughconductor`` with ``material: none`` (Mitsuba's perfect
-    reflector), the plastic as ``roughplastic`` (GGX, α, interior index, diffuse reflectance). Others have no Mitsuba
-    equivalent with the same formula, and are refused rather than approximated."""
+    """The Mitsuba 3 BSDF of a mesh's material, with the same parameters.
+
+    The albedo (or texture) as ``diffuse``; a Lambert BRDF as ``diffuse``; GGX with a conductor's η, k as
+    ``roughconductor`` (GGX, same α, η, k per RGB channel), GGX without Fresnel (f0 = 1) as ``roughconductor`` with
+    ``material: none`` (Mitsuba's perfect reflector), the plastic as ``roughplastic`` (GGX, α, interior index, diffuse
+    reflectance). Others have no Mitsuba equivalent with the same formula, and are refused rather than approximated.
+
+    Parameters
+    ----------
+    mesh : MeshInstance
+        The mesh whose material is translated.
+    folder : Path
+        Where a texture is written, as linear float32 ``texture{index}.exr`` (when the material has one and the mesh
+        has UVs; read bilinearly, repeating).
+    index : int
+        Numbers the texture's file.
+
+    Returns
+    -------
+    dict
+        The BSDF as a Mitsuba plugin dict (one-sided; :func:`scene_dict` wraps it in ``twosided``).
+
+    Raises
+    ------
+    UsageError
+        The material's BRDF has no Mitsuba 3 BSDF with the same formula.
+    """
     from ..glossy.brdf import GGX, Conductor, Lambert, Plastic, Schlick
 
     brdf = mesh.material.brdf
@@ -134,6 +204,39 @@ def mitsuba_bsdf(mesh: MeshInstance, folder: Path, index: int) -> dict:
 
 
 def scene_dict(mi, scene: Scene, folder: Path, spp: int, global_illumination: bool, seed: int) -> dict:
+    """The Mitsuba 3 scene dict of ``scene``, its files written into ``folder``.
+
+    How it matches the project's renderer is in the module docstring: the same look-at camera and vertical field of
+    view, box filter, every mesh a two-sided PLY with the renderer's normals, the environment as
+    :func:`mitsuba_latlong`.
+
+    Parameters
+    ----------
+    mi : module
+        The ``mitsuba`` module with a variant set (:func:`mitsuba`).
+    scene : Scene
+        The scene to translate.
+    folder : Path
+        An existing folder where ``environment.exr``, ``mesh{i}.ply`` and textures are written; it must last until
+        ``mi.load_dict`` has read them.
+    spp : int
+        Samples per pixel of the ``independent`` sampler.
+    global_illumination : bool
+        True: the ``path`` integrator with every bounce (max_depth −1); False: max_depth 2, direct lighting only.
+    seed : int
+        The sampler's seed.
+
+    Returns
+    -------
+    dict
+        The scene for ``mi.load_dict``: integrator (emitters hidden when the scene's ``background`` is off), sensor
+        with its film and sampler, the ``envmap`` emitter, and ``mesh{i}`` for every mesh.
+
+    Raises
+    ------
+    UsageError
+        A material's BRDF has no Mitsuba 3 BSDF with the same formula.
+    """
     cam = scene.camera
     env_path = folder / "environment.exr"
     write_image(env_path, mitsuba_latlong(scene.environment))
@@ -171,7 +274,19 @@ MITSUBA_BYTES = 128 << 20  # Mitsuba and Dr.Jit's LLVM backend loaded (~340 MB m
 
 
 def reference_memory(scene: Scene) -> int:
-    """Estimated peak memory (bytes) of :func:`reference_render` (measured in tests/test_limits.py)."""
+    """Estimated peak memory (bytes) of :func:`reference_render` (measured in tests/test_limits.py).
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene: its camera's image size, its triangle count and its environment map's size.
+
+    Returns
+    -------
+    int
+        :data:`MITSUBA_BYTES` + :data:`REFERENCE_BYTES_PER_PIXEL` per pixel + :data:`BYTES_PER_TRIANGLE` per triangle
+        + 16 bytes per value of the environment map.
+    """
     cam = scene.camera
     return (MITSUBA_BYTES + cam.width * cam.height * REFERENCE_BYTES_PER_PIXEL
             + scene.triangle_count * BYTES_PER_TRIANGLE + scene.environment.data.size * 16)
@@ -214,7 +329,38 @@ def reference_render(scene: Scene, spp: int = 64, global_illumination: bool = Fa
     """Path-trace ``scene`` with Mitsuba 3: radiance (H, W, 3), ``spp`` samples per pixel.
 
     The estimated memory is checked against the budget before Mitsuba starts (under a memory cap it crashes the
-    process instead of raising). The scene's files live in a temporary folder only while Mitsuba loads them."""
+    process instead of raising). The scene's files live in a temporary folder only while Mitsuba loads them.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene, rendered as the module docstring says the renderer sees it.
+    spp : int
+        Samples per pixel, from 1 to 65536. Default 64. Rendered in passes of at most :data:`SAMPLES_PER_PASS`
+        samples, pass k with seed + k, averaged by their sample counts.
+    global_illumination : bool
+        True: every bounce; False (default): direct lighting only, the papers' assumption (with shadows).
+    seed : int
+        The sampler's seed. Default 0.
+    variant : str or None
+        The Mitsuba variant (:func:`mitsuba`); None (default): ``llvm_ad_rgb`` with LLVM 19, else ``scalar_rgb``.
+
+    Returns
+    -------
+    Rendering
+        The image, (H, W, 3) float32 linear RGB radiance; coverage all ones (not measured here: see
+        :func:`reference_coverage`); the description (Mitsuba version, variant, transport, spp) and the seconds of
+        ``load`` and ``render``.
+
+    Raises
+    ------
+    LightprobeError
+        ``spp`` is out of range, or Mitsuba is missing or its variant does not start.
+    BudgetError
+        The estimated memory is over the budget.
+    UsageError
+        A material's BRDF has no Mitsuba 3 BSDF with the same formula.
+    """
     import os
 
     from ..util.limits import check_memory
@@ -238,9 +384,32 @@ def reference_render(scene: Scene, spp: int = 64, global_illumination: bool = Fa
 
 
 def reference_coverage(scene: Scene, spp: int = 64, seed: int = 0, variant: str | None = None) -> np.ndarray:
-    """Fraction of each pixel covered by geometry, as Mitsuba sees the scene: the box-filtered ``albedo`` AOV of
-    the scene with every material white. Compared with the renderer's coverage it proves camera and geometry
-    agree."""
+    """Fraction of each pixel covered by geometry, as Mitsuba sees the scene.
+
+    The box-filtered ``albedo`` AOV of the scene with every material white. Compared with the renderer's coverage it
+    proves camera and geometry agree.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene; its materials are replaced by white Lambertian ones.
+    spp : int
+        Samples per pixel. Default 64.
+    seed : int
+        The sampler's seed. Default 0.
+    variant : str or None
+        The Mitsuba variant (:func:`mitsuba`); None (default): chosen by :func:`mitsuba`.
+
+    Returns
+    -------
+    numpy.ndarray
+        (H, W) float32 in [0, 1], the mean of the AOV's three channels.
+
+    Raises
+    ------
+    LightprobeError
+        Mitsuba is missing or its variant does not start.
+    """
     mi = mitsuba(variant)
     white = Scene(tuple(type(m)(m.vertices, m.faces, m.normals, type(m.material)((1.0, 1.0, 1.0)), m.uv, m.name)
                         for m in scene.meshes), scene.camera, scene.environment, scene.background, scene.name)

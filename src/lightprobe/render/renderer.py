@@ -20,8 +20,24 @@ from .scene import Scene
 
 @dataclass(frozen=True, eq=False)
 class Rendering:
-    """A rendered image with what made it: ``image`` radiance (H, W, 3), ``coverage`` the fraction of each pixel's
-    samples that hit geometry, ``seconds`` per stage."""
+    """A rendered image with what made it.
+
+    ``image`` radiance (H, W, 3), ``coverage`` the fraction of each pixel's samples that hit geometry, ``seconds``
+    per stage.
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        (H, W, 3) float32 linear RGB radiance, row 0 the image's top.
+    coverage : numpy.ndarray
+        (H, W) float32 in [0, 1]: the share of each pixel's samples that hit geometry.
+    method : str
+        What made it: the lighting method's :meth:`~lightprobe.render.methods.Method.describe`, or the reference's
+        description.
+    seconds : dict
+        Seconds per stage by name (the renderer's ``rays``, ``intersect`` and ``shade``; the reference's ``load`` and
+        ``render``).
+    """
 
     image: np.ndarray
     coverage: np.ndarray
@@ -36,14 +52,61 @@ BYTES_PER_TRIANGLE = 200
 
 
 def render_memory(width: int, height: int, spp: int, triangles: int) -> int:
-    """Estimated memory (bytes, beyond the process itself) of :func:`render` of a width × height image with
-    spp × spp samples per pixel."""
+    """Estimated memory (bytes, beyond the process itself) of :func:`render`.
+
+    For a width × height image with spp × spp samples per pixel: :data:`BYTES_PER_SAMPLE` per camera sample plus
+    :data:`BYTES_PER_TRIANGLE` per triangle.
+
+    Parameters
+    ----------
+    width : int
+        Image width in pixels.
+    height : int
+        Image height in pixels.
+    spp : int
+        Samples per pixel along each axis (spp² per pixel).
+    triangles : int
+        Triangles of the scene.
+
+    Returns
+    -------
+    int
+        The estimate in bytes.
+    """
     return width * height * spp * spp * BYTES_PER_SAMPLE + triangles * BYTES_PER_TRIANGLE
 
 
 def render(scene: Scene, method: Method, spp: int = 1, tracer: Tracer | None = None) -> Rendering:
-    """Render ``scene`` lit by ``method``; ``spp`` is the per-axis supersampling (spp² samples per pixel). The
-    estimated memory is checked against the budget (:mod:`lightprobe.util.limits`) before any ray is cast."""
+    """Render ``scene`` lit by ``method``; ``spp`` is the per-axis supersampling (spp² samples per pixel).
+
+    The estimated memory is checked against the budget (:mod:`lightprobe.util.limits`) before any ray is cast.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene: meshes, camera and environment (radiance, world frame).
+    method : Method
+        Shades the hits (:mod:`lightprobe.render.methods`, :mod:`lightprobe.render.glossy`); a scene with a glossy
+        material needs a method that shades glossy surfaces.
+    spp : int
+        Samples per pixel along each axis, from 1 to 16, box-filtered. Default 1.
+    tracer : Tracer or None
+        A tracer of this very scene to reuse (its acceleration structures); None (default) builds one.
+
+    Returns
+    -------
+    Rendering
+        The image (H, W, 3) float32 radiance (misses show the environment when the scene's ``background`` is on,
+        else 0), each pixel's coverage, the method's description and the seconds of ``rays``, ``intersect`` and
+        ``shade``.
+
+    Raises
+    ------
+    UsageError
+        ``spp`` is out of range, or a glossy material meets a method that shades Lambertian surfaces only.
+    BudgetError
+        The scene has more triangles than ``LIGHTPROBE_MAX_TRIANGLES``, or the estimated memory is over the budget.
+    """
     if not 1 <= spp <= 16:
         raise UsageError("spp must be within 1..16")
     if scene.triangle_count > max_triangles():

@@ -24,7 +24,28 @@ from ..util.limits import max_triangles
 
 @dataclass(frozen=True)
 class Camera:
-    """Pinhole camera: ``fov`` is the vertical field of view in degrees; image row 0 is the top."""
+    """Pinhole camera: ``fov`` is the vertical field of view in degrees; image row 0 is the top.
+
+    Parameters
+    ----------
+    eye : tuple of float
+        The camera's position, world frame (+Y up), in the meshes' units. Default (0, 0.5, 3).
+    target : tuple of float
+        The point it looks at, world frame. Default (0, 0.3, 0): the default camera looks along −Z.
+    up : tuple of float
+        The world direction that appears up in the image (need not be orthogonal to the view). Default +Y.
+    fov : float
+        Vertical field of view in degrees, from 0.1 to 179. Default 35.
+    width : int
+        Image width in pixels, from 1 to 16384. Default 256.
+    height : int
+        Image height in pixels, from 1 to 16384. Default 256.
+
+    Raises
+    ------
+    LightprobeError
+        A size or field of view out of range, or ``eye``, ``target`` and ``up`` collinear (eye = target included).
+    """
 
     eye: tuple[float, float, float] = (0.0, 0.5, 3.0)
     target: tuple[float, float, float] = (0.0, 0.3, 0.0)
@@ -43,7 +64,14 @@ class Camera:
             raise LightprobeError("camera eye, target and up must not be collinear")
 
     def basis(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(right, up, forward) unit vectors of the camera in the world frame."""
+        """(right, up, forward) unit vectors of the camera in the world frame.
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            Three (3,) float64 unit vectors: forward from ``eye`` toward ``target``; right = forward × ``up``,
+            normalised; up = right × forward, the image's up, orthogonal to both.
+        """
         forward = np.subtract(self.target, self.eye).astype(np.float64)
         forward /= np.linalg.norm(forward)
         right = np.cross(forward, self.up)
@@ -51,7 +79,23 @@ class Camera:
         return right, np.cross(right, forward), forward
 
     def rays(self, spp: int = 1) -> tuple[np.ndarray, np.ndarray]:
-        """Ray origins and unit directions for spp × spp stratified samples per pixel: (H, W, spp², 3)."""
+        """Ray origins and unit directions for spp × spp stratified samples per pixel: (H, W, spp², 3).
+
+        Sample (i, j) of a pixel sits at ((i + ½)/spp, (j + ½)/spp) across it: spp = 1 is the pixel's centre. Row 0 is
+        the image's top, column 0 its left.
+
+        Parameters
+        ----------
+        spp : int
+            Samples per pixel along each axis. Default 1. (The renderer allows 1 to 16.)
+
+        Returns
+        -------
+        origins : numpy.ndarray
+            (H, W, spp², 3) float64, every one the eye (a read-only broadcast of it), world frame.
+        directions : numpy.ndarray
+            (H, W, spp², 3) float64 unit directions, world frame.
+        """
         right, up, forward = self.basis()
         half_h = np.tan(np.radians(self.fov) / 2)
         half_w = half_h * self.width / self.height
@@ -69,9 +113,27 @@ class Camera:
 
 @dataclass(frozen=True)
 class Material:
-    """Lambertian reflectance ``albedo`` (linear RGB) or ``texture`` (linear RGB image, looked up at the mesh UVs),
+    """A mesh's surface: Lambertian ``albedo`` or ``texture``, or another BRDF.
+
+    Lambertian reflectance ``albedo`` (linear RGB) or ``texture`` (linear RGB image, looked up at the mesh UVs),
     unless ``brdf`` names another BRDF (a :class:`lightprobe.glossy.brdf.BRDF`, e.g. GGX gold): then the surface is that
-    BRDF, and only the methods that shade glossy surfaces (``brute``, and the Mitsuba reference) can render it."""
+    BRDF, and only the methods that shade glossy surfaces (``brute``, and the Mitsuba reference) can render it.
+
+    Parameters
+    ----------
+    albedo : tuple of float
+        Lambertian reflectance, three linear RGB numbers in [0, 1]. Default (0.8, 0.8, 0.8).
+    texture : numpy.ndarray or None
+        (h, w, 3 or more) linear RGB image, row 0 the top; where the mesh has UVs it replaces ``albedo`` (looked up
+        bilinearly, wrapping, UV (0, 0) the image's bottom left). Default None.
+    brdf : BRDF or None
+        Another BRDF for the surface; None (default): Lambertian.
+
+    Raises
+    ------
+    LightprobeError
+        ``albedo`` is not three finite numbers in [0, 1], or ``brdf`` is not a BRDF.
+    """
 
     albedo: tuple[float, float, float] = (0.8, 0.8, 0.8)
     texture: np.ndarray | None = field(default=None, repr=False)
@@ -92,7 +154,31 @@ class Material:
 
 @dataclass(frozen=True, eq=False)
 class MeshInstance:
-    """Triangles in world space with per-vertex shading normals (and optional UVs) and a material."""
+    """Triangles in world space with per-vertex shading normals (and optional UVs) and a material.
+
+    Build one with :func:`mesh_instance`, which checks shapes and indices and computes normals; this class itself
+    checks only that the numbers are finite.
+
+    Parameters
+    ----------
+    vertices : numpy.ndarray
+        (V, 3) float64 positions, world frame, in the meshes' units.
+    faces : numpy.ndarray
+        (F, 3) int64 vertex indices of each triangle.
+    normals : numpy.ndarray
+        (V, 3) unit vertex normals, world frame, interpolated across triangles as shading normals.
+    material : Material
+        The surface. Default: Lambertian, albedo 0.8.
+    uv : numpy.ndarray or None
+        (V, 2) texture coordinates, v up (OpenGL/OBJ convention), or None.
+    name : str
+        Names the mesh in messages. Default ``mesh``.
+
+    Raises
+    ------
+    LightprobeError
+        Vertices, normals or UVs contain NaN or infinite numbers.
+    """
 
     vertices: np.ndarray  # (V, 3) float64
     faces: np.ndarray  # (F, 3) int64
@@ -110,7 +196,21 @@ class MeshInstance:
 
 @dataclass(frozen=True, eq=False)
 class Scene:
-    """Meshes + camera + the environment (radiance, world frame) that lights them and is seen behind them."""
+    """Meshes + camera + the environment (radiance, world frame) that lights them and is seen behind them.
+
+    Parameters
+    ----------
+    meshes : tuple of MeshInstance
+        The geometry, world frame.
+    camera : Camera
+        The pinhole camera that frames the image.
+    environment : EnvMap
+        The only light: radiance arriving from each direction, world frame (+Y up, front −Z), any layout.
+    background : bool
+        True (default): rays that hit nothing show the environment; False: they are black (0).
+    name : str
+        Names the scene in reports. Default ``scene``.
+    """
 
     meshes: tuple[MeshInstance, ...]
     camera: Camera
@@ -120,6 +220,7 @@ class Scene:
 
     @property
     def triangle_count(self) -> int:
+        """Triangles of all the meshes together."""
         return sum(len(m.faces) for m in self.meshes)
 
 
@@ -137,6 +238,35 @@ def _vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
 
 def mesh_instance(vertices, faces, material: Material = Material(), normals=None, uv=None,
                   name: str = "mesh") -> MeshInstance:
+    """A checked :class:`MeshInstance` from vertices, triangles and optional normals and UVs.
+
+    Parameters
+    ----------
+    vertices : array_like
+        (V, 3) positions, world frame, in the meshes' units (converted to float64).
+    faces : array_like
+        (F, 3) vertex indices of each triangle, 0 ≤ index < V, at least one triangle (converted to int64). Computed
+        normals point to the side from which a triangle's vertices run counter-clockwise.
+    material : Material
+        The surface. Default: Lambertian, albedo 0.8.
+    normals : array_like or None
+        (V, 3) unit vertex normals, taken as given. None (default): area-weighted normals, the normalised sum of the
+        unnormalised face normals at each vertex (+Y where that sum is zero).
+    uv : array_like or None
+        (V, 2) texture coordinates, v up (OpenGL/OBJ convention), or None (default).
+    name : str
+        Names the mesh in messages. Default ``mesh``.
+
+    Returns
+    -------
+    MeshInstance
+        The mesh, arrays as float64 (indices int64).
+
+    Raises
+    ------
+    LightprobeError
+        Arrays of the wrong shape, no triangle, an index out of range, or numbers that are not finite.
+    """
     v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(faces, dtype=np.int64)
     if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3 or len(f) == 0:
@@ -151,7 +281,31 @@ TEXT_MESH_SUFFIXES = (".obj", ".off")  # formats that are text only (PLY and STL
 
 
 def load_mesh(path: str | os.PathLike, material: Material = Material()) -> MeshInstance:
-    """A mesh file (OBJ, PLY, STL, glTF/GLB, OFF …) through trimesh, as one triangle mesh with smooth normals."""
+    """A mesh file (OBJ, PLY, STL, glTF/GLB, OFF …) through trimesh, as one triangle mesh with smooth normals.
+
+    The file's own normals are not used: vertex normals are area-weighted from the triangles (:func:`mesh_instance`).
+    Text formats (OBJ, OFF) must be UTF-8. UVs are kept; when there are UVs, an image in the file's material becomes the
+    material's texture (sRGB-decoded to linear) unless ``material`` has one already.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A regular file; trimesh reads it by its suffix.
+    material : Material
+        The surface. Default: Lambertian, albedo 0.8.
+
+    Returns
+    -------
+    MeshInstance
+        The mesh as the file has it (its units and axes, no transform), named after the file's stem.
+
+    Raises
+    ------
+    InputError
+        The path is not a regular file, a text format is not UTF-8, or the file is malformed or has no triangles.
+    BudgetError
+        More triangles than ``LIGHTPROBE_MAX_TRIANGLES`` allows.
+    """
     import trimesh
 
     path = Path(path)
@@ -213,14 +367,61 @@ def _mesh_error(path: Path, e: Exception) -> str:
 
 
 def transformed(mesh: MeshInstance, scale: float = 1.0, rotation=None, translate=(0.0, 0.0, 0.0)) -> MeshInstance:
-    """The mesh scaled, then rotated ((yaw, pitch, roll) degrees or a matrix), then translated."""
+    """The mesh scaled, then rotated ((yaw, pitch, roll) degrees or a matrix), then translated.
+
+    Parameters
+    ----------
+    mesh : MeshInstance
+        The mesh to move; it is not changed.
+    scale : float
+        Uniform scale factor about the origin. Default 1.
+    rotation : array_like or None
+        (yaw, pitch, roll) in degrees or a 3×3 proper rotation matrix (:func:`lightprobe.maps.frames.as_rotation`),
+        about the origin; None (default): no rotation.
+    translate : array_like
+        (3,) offset, world frame, in the meshes' units. Default (0, 0, 0).
+
+    Returns
+    -------
+    MeshInstance
+        A new mesh: vertices (v · scale) Rᵀ + translate, normals rotated; faces, material, UVs and name kept.
+
+    Raises
+    ------
+    UsageError
+        ``rotation`` is not finite numbers, or a matrix that is not a proper rotation.
+    LightprobeError
+        The moved vertices or normals are not finite (a NaN scale, say).
+    """
     r = np.eye(3) if rotation is None else as_rotation(rotation)
     v = (mesh.vertices * scale) @ r.T + np.asarray(translate, dtype=np.float64)
     return MeshInstance(v, mesh.faces, mesh.normals @ r.T, mesh.material, mesh.uv, mesh.name)
 
 
 def fitted(mesh: MeshInstance, size: float, on_ground: bool = True, ground_height: float = 0.0) -> MeshInstance:
-    """Scale so the largest extent is ``size``, centre on x and z, and (optionally) stand it on the ground."""
+    """Scale so the largest extent is ``size``, centre on x and z, and (optionally) stand it on the ground.
+
+    Parameters
+    ----------
+    mesh : MeshInstance
+        The mesh to fit; it is not changed.
+    size : float
+        The largest side of its axis-aligned bounding box after scaling, in world units; finite and > 0.
+    on_ground : bool
+        True (default): its lowest point goes to y = ``ground_height``; False: its box is centred on y = 0 too.
+    ground_height : float
+        The ground's y, used with ``on_ground``. Default 0.
+
+    Returns
+    -------
+    MeshInstance
+        The mesh scaled uniformly and translated (not rotated).
+
+    Raises
+    ------
+    LightprobeError
+        ``size`` is not a finite positive number.
+    """
     if not (np.isfinite(size) and size > 0):
         raise LightprobeError(f"{mesh.name}: fit must be a positive number, got {size!r}")
     lo, hi = mesh.vertices.min(axis=0), mesh.vertices.max(axis=0)
@@ -236,7 +437,24 @@ TORUS_TRIANGLES = 2 * 96 * 48
 
 def sphere(radius: float = 0.5, center=(0.0, 0.0, 0.0), material: Material = Material(),
            subdivisions: int = 5) -> MeshInstance:
-    """An icosphere with exact sphere normals (so shading is that of a perfect sphere)."""
+    """An icosphere with exact sphere normals (so shading is that of a perfect sphere).
+
+    Parameters
+    ----------
+    radius : float
+        Radius in world units. Default 0.5.
+    center : array_like
+        (3,) centre, world frame. Default the origin.
+    material : Material
+        The surface. Default: Lambertian, albedo 0.8.
+    subdivisions : int
+        Icosphere subdivision level: 20 · 4^subdivisions triangles. Default 5 (:data:`SPHERE_TRIANGLES`, 20480).
+
+    Returns
+    -------
+    MeshInstance
+        The sphere, named ``sphere``, its normals the unit directions from the centre.
+    """
     import trimesh
 
     ico = trimesh.creation.icosphere(subdivisions=subdivisions)
@@ -246,8 +464,30 @@ def sphere(radius: float = 0.5, center=(0.0, 0.0, 0.0), material: Material = Mat
 
 def torus(major: float = 0.35, minor: float = 0.12, center=(0.0, 0.0, 0.0), material: Material = Material(),
           rotation=(0.0, 90.0, 0.0)) -> MeshInstance:
-    """A torus; by default lying flat (its axis turned from trimesh's +Z to +Y), so ``center`` y = ``minor`` rests
-    it on the ground."""
+    """A torus; by default lying flat (its axis turned from trimesh's +Z to +Y).
+
+    Lying flat, ``center`` y = ``minor`` rests it on the ground (y = 0). It has 96 × 48 sections
+    (:data:`TORUS_TRIANGLES` triangles).
+
+    Parameters
+    ----------
+    major : float
+        Distance from the centre to the middle of the tube, world units. Default 0.35.
+    minor : float
+        Radius of the tube, world units. Default 0.12.
+    center : array_like
+        (3,) where its centre goes, world frame, after the rotation. Default the origin.
+    material : Material
+        The surface. Default: Lambertian, albedo 0.8.
+    rotation : array_like
+        (yaw, pitch, roll) in degrees or a 3×3 rotation, applied about its centre before it is moved. Default
+        (0, 90, 0): lying flat.
+
+    Returns
+    -------
+    MeshInstance
+        The torus, named ``torus``, with area-weighted vertex normals.
+    """
     import trimesh
 
     t = trimesh.creation.torus(major_radius=major, minor_radius=minor, major_sections=96, minor_sections=48)
@@ -255,6 +495,22 @@ def torus(major: float = 0.35, minor: float = 0.12, center=(0.0, 0.0, 0.0), mate
 
 
 def ground_plane(size: float = 20.0, height: float = 0.0, material: Material = Material((0.5, 0.5, 0.5))) -> MeshInstance:
+    """A square ground plane of two triangles facing +Y, centred on the y axis.
+
+    Parameters
+    ----------
+    size : float
+        Side of the square, world units. Default 20.
+    height : float
+        Its y, world frame. Default 0.
+    material : Material
+        The surface. Default: Lambertian, albedo 0.5.
+
+    Returns
+    -------
+    MeshInstance
+        The plane, named ``ground``, with +Y normals.
+    """
     h = size / 2
     v = np.array([[-h, height, -h], [h, height, -h], [h, height, h], [-h, height, h]])
     f = np.array([[0, 2, 1], [0, 3, 2]])  # counter-clockwise seen from above: normal +Y
@@ -266,7 +522,18 @@ KEY_LIGHT_AZIMUTH = -135.0  # behind the default camera, on its left: lit fronts
 
 
 def key_light_azimuth(env: EnvMap) -> float:
-    """Azimuth φ (degrees; 0 = front −Z, 90 = +X) of the pixel carrying the most light (luminance × solid angle)."""
+    """Azimuth φ (degrees; 0 = front −Z, 90 = +X) of the pixel carrying the most light (luminance × solid angle).
+
+    Parameters
+    ----------
+    env : EnvMap
+        The environment, radiance, world frame, any layout; Rec. 709 luminance weighs the pixels.
+
+    Returns
+    -------
+    float
+        φ in degrees, in [−180, 180].
+    """
     from ..maps.tonemap import luminance
 
     power = luminance(env.data) * env.solid_angles()
@@ -275,13 +542,47 @@ def key_light_azimuth(env: EnvMap) -> float:
 
 
 def with_key_light_at(env: EnvMap, azimuth: float = KEY_LIGHT_AZIMUTH) -> EnvMap:
-    """The environment turned about +Y so its brightest light comes from ``azimuth`` (a yaw ψ moves φ to φ − ψ)."""
+    """The environment turned about +Y so its brightest light comes from ``azimuth`` (a yaw ψ moves φ to φ − ψ).
+
+    Parameters
+    ----------
+    env : EnvMap
+        The environment, radiance, world frame.
+    azimuth : float
+        Where the brightest pixel (:func:`key_light_azimuth`) goes, degrees, 0 = front −Z, 90 = +X. Default
+        :data:`KEY_LIGHT_AZIMUTH` (−135: behind the default camera, on its left).
+
+    Returns
+    -------
+    EnvMap
+        The turned environment (resampled, same layout and size, :meth:`lightprobe.maps.EnvMap.rotated`).
+    """
     return env.rotated((key_light_azimuth(env) - azimuth, 0.0, 0.0))
 
 
 def builtin_scene(environment: EnvMap, width: int = 256, height: int = 256, turn_to_key_light: bool = True) -> Scene:
-    """The scene commands use when given none: a sphere and a flat torus standing on a grey ground plane, the
-    environment turned so its brightest light comes from behind the camera's left."""
+    """The scene commands use when given none: a sphere and a flat torus standing on a grey ground plane.
+
+    The environment is turned so its brightest light comes from behind the camera's left.
+
+    Parameters
+    ----------
+    environment : EnvMap
+        The light and background, radiance, world frame.
+    width : int
+        Image width in pixels (1 to 16384). Default 256.
+    height : int
+        Image height in pixels (1 to 16384). Default 256.
+    turn_to_key_light : bool
+        True (default): turn ``environment`` by :func:`with_key_light_at`; False: use it as given.
+
+    Returns
+    -------
+    Scene
+        A sphere (radius 0.3 at (−0.35, 0.3, 0), albedo 0.75), a torus (0.26 and 0.1 at (0.42, 0.1, 0.1), albedo
+        (0.8, 0.55, 0.35)), a ground plane (20 units at y = 0, albedo 0.5), the camera at (0, 0.8, 2.3) looking at
+        (0, 0.2, 0) with a 35° field of view, and the background shown.
+    """
     meshes = (
         sphere(0.3, (-0.35, 0.3, 0.0), Material((0.75, 0.75, 0.75))),
         torus(0.26, 0.1, (0.42, 0.1, 0.1), Material((0.8, 0.55, 0.35))),
@@ -294,8 +595,38 @@ def builtin_scene(environment: EnvMap, width: int = 256, height: int = 256, turn
 
 def mesh_scene(mesh_path: str | os.PathLike, environment: EnvMap, width: int = 256, height: int = 256,
                ground: bool = True, albedo=(0.8, 0.8, 0.8), turn_to_key_light: bool = True) -> Scene:
-    """One mesh (fitted to 1 unit, standing on a ground plane) framed by the default camera, the environment
-    turned so its brightest light comes from behind the camera's left."""
+    """One mesh (fitted to 1 unit, standing on a ground plane) framed by the default camera.
+
+    The environment is turned so its brightest light comes from behind the camera's left.
+
+    Parameters
+    ----------
+    mesh_path : str or os.PathLike
+        The mesh file (:func:`load_mesh`).
+    environment : EnvMap
+        The light and background, radiance, world frame.
+    width, height : int
+        Image size in pixels, each from 1 to 16384. Default 256 × 256.
+    ground : bool
+        Add a 20-unit ground plane at y = 0, albedo 0.5. Default True.
+    albedo : array_like
+        The mesh's Lambertian reflectance, three linear RGB numbers in [0, 1]. Default (0.8, 0.8, 0.8).
+    turn_to_key_light : bool
+        As for :func:`builtin_scene`. Default True.
+
+    Returns
+    -------
+    Scene
+        The mesh fitted to a largest extent of 1 and stood on y = 0, the camera framing its height h from
+        (0, 0.55 h + 0.35, 2.6) toward (0, 0.45 h, 0) with a 32° field of view; named after the file.
+
+    Raises
+    ------
+    InputError
+        The mesh file cannot be read.
+    BudgetError
+        The mesh has more triangles than ``LIGHTPROBE_MAX_TRIANGLES``.
+    """
     mesh = fitted(load_mesh(mesh_path, Material(tuple(albedo))), 1.0, on_ground=True)
     environment = with_key_light_at(environment) if turn_to_key_light else environment
     meshes = (mesh, ground_plane(20.0, 0.0)) if ground else (mesh,)
@@ -306,7 +637,23 @@ def mesh_scene(mesh_path: str | os.PathLike, environment: EnvMap, width: int = 2
 
 
 def sphere_scene(environment: EnvMap, size: int = 64, fov: float = 30.0) -> Scene:
-    """A unit-radius sphere alone, filling most of the frame: no shadows, no occlusion (for method checks)."""
+    """A unit-radius sphere alone, filling most of the frame: no shadows, no occlusion (for method checks).
+
+    Parameters
+    ----------
+    environment : EnvMap
+        The light and background, radiance, world frame.
+    size : int
+        Width and height of the image in pixels. Default 64.
+    fov : float
+        Vertical field of view in degrees. Default 30. The camera sits on +Z at 1.15 / sin(fov / 2) from the centre,
+        looking at it.
+
+    Returns
+    -------
+    Scene
+        A white (albedo 1) icosphere of 6 subdivisions at the origin, the background shown.
+    """
     distance = 1.15 / np.sin(np.radians(fov) / 2)
     camera = Camera(eye=(0.0, 0.0, distance), target=(0.0, 0.0, 0.0), fov=fov, width=size, height=size)
     return Scene((sphere(1.0, (0, 0, 0), Material((1.0, 1.0, 1.0)), subdivisions=6),), camera, environment, True,

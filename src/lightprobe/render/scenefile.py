@@ -151,7 +151,31 @@ def _load_yaml(text: str, path: Path):
 
 
 def load_scene(path: str | os.PathLike, environment: EnvMap | None = None) -> Scene:
-    """A scene from a YAML or JSON file (see the module docstring); ``environment`` overrides its ``probe``."""
+    """A scene from a YAML or JSON file (see the module docstring); ``environment`` overrides its ``probe``.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The scene file, a regular file of at most :data:`MAX_FILE_BYTES`: read as JSON when its suffix is ``.json``,
+        as YAML otherwise (UTF-8; bytes that are not UTF-8 are replaced). Paths in it are relative to its folder.
+    environment : EnvMap or None
+        The environment (radiance, world frame) to light the scene with instead of the file's ``probe``; the file's
+        ``rotate`` still turns it. None (default): the file's ``probe``, or the shipped probe.
+
+    Returns
+    -------
+    Scene
+        The scene, named after the file's stem.
+
+    Raises
+    ------
+    InputError
+        The file is missing, not a regular file, unreadable or malformed, not a mapping, over :data:`MAX_NODES` YAML
+        nodes once aliases are expanded, or a field is wrong (the message names it).
+    BudgetError
+        The file is over :data:`MAX_FILE_BYTES`, or the scene over :data:`MAX_MESHES` meshes or
+        ``LIGHTPROBE_MAX_TRIANGLES`` triangles.
+    """
     path = Path(path)
     check_regular_file(path, "scene")
     if path.stat().st_size > MAX_FILE_BYTES:
@@ -261,7 +285,35 @@ def _camera(spec) -> Camera:
 
 
 def scene_from_dict(spec: dict, base: Path, environment: EnvMap | None = None, name: str = "scene") -> Scene:
-    """Build a :class:`Scene` from the parsed file (see the module docstring); paths are relative to ``base``."""
+    """Build a :class:`Scene` from the parsed file (see the module docstring); paths are relative to ``base``.
+
+    Parameters
+    ----------
+    spec : dict
+        The parsed file: ``probe``, ``rotate``, ``camera``, ``meshes``, ``ground``, ``background`` (keys starting with
+        ``_`` are ignored), each checked for its type and range (:data:`RANGES`).
+    base : Path
+        The folder that relative ``probe``, ``file`` and ``texture`` paths are joined to.
+    environment : EnvMap or None
+        The environment (radiance, world frame) instead of ``probe``; ``rotate`` still turns it. None (default):
+        ``probe`` is read, or the shipped probe when there is none.
+    name : str
+        The scene's name. Default ``scene``.
+
+    Returns
+    -------
+    Scene
+        The meshes in the file's order with the ground plane last, the camera, the environment and the background
+        flag.
+
+    Raises
+    ------
+    InputError
+        A field is unknown, of the wrong type or out of range (the message names it), or there is nothing to render.
+    BudgetError
+        Over :data:`MAX_MESHES` meshes, or over ``LIGHTPROBE_MAX_TRIANGLES`` triangles (counted before the built-in
+        shapes are made).
+    """
     from ..data import default_probe_path
 
     top = _Fields(spec, "the top level", {"probe", "rotate", "camera", "meshes", "ground", "background"})

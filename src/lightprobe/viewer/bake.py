@@ -6,8 +6,9 @@ Every quantity keeps the convention of the module that made it; the manifest ``b
   :mod:`lightprobe.sh.basis`); the page forms eq. 12's matrices from them itself, so the sliders can edit L_lm.
 * ``threejs.json`` — the ``threejs`` export (:func:`lightprobe.exports.sh.export_threejs`, in the frame three.js shows
   an equirectangular background in): what the page hands three.js's own ``LightProbe``.
-* ``lights.json`` — the area lights and ambient SH (:mod:`lightprobe.lights.lightsfile`, world frame); ``ambient.f32`` the
-  ambient's **irradiance** E(n) (SH of :data:`AMBIENT_ORDER`) on a latlong grid indexed by the normal.
+* ``lights.json`` — the area lights and ambient SH (:mod:`lightprobe.lights.lightsfile`, world frame);
+  ``ambient.f32`` the ambient's **irradiance** E(n) (SH of order :data:`lightprobe.lights.hybrid.DEFAULT_AMBIENT_ORDER`)
+  on a latlong grid indexed by the normal.
 * ``radiance-K.f32`` — BRDF K's radiance maps L_r(n; v_i) at the geodesic views (sphere layout, frames
   :func:`lightprobe.glossy.radiance.view_frame`), **radiance**; ``prefiltered-K.f32`` the split sum's GGX-prefiltered
   environment (radiance, latlong) with its DFG table in the manifest.
@@ -46,7 +47,24 @@ DEFAULT_MAX_PIXELS = 1 << 25  # 8192 × 4096
 
 @dataclass(frozen=True)
 class BakeOptions:
-    """What a bake depends on besides its input files."""
+    """What a bake depends on besides its input files.
+
+    Parameters
+    ----------
+    brdfs : tuple of str
+        BRDF specs (:func:`lightprobe.glossy.brdf.parse_brdf`), each baked as radiance maps and, for GGX, the split
+        sum's prefiltered map. Default :data:`DEFAULT_BRDFS`: gold GGX (α 0.2) and a red plastic.
+    views : int
+        Geodesic view directions of each BRDF's radiance maps: 12 (default), 42 or 162.
+    map_size : int
+        Texels on a side of each radiance map. Default 128.
+    background_width : int
+        Largest width of the background lat-long in pixels (its height is half). Default :data:`BACKGROUND_WIDTH`
+        (1024).
+    light_params : dict
+        Keyword arguments of :class:`lightprobe.lights.decompose.LightParams` for the decomposition; empty (default):
+        the paper's defaults.
+    """
 
     brdfs: tuple[str, ...] = DEFAULT_BRDFS
     views: int = 12
@@ -55,24 +73,72 @@ class BakeOptions:
     light_params: dict = field(default_factory=dict)
 
     def key(self) -> str:
+        """The options as one canonical text, for the cache key.
+
+        Returns
+        -------
+        str
+            The options as JSON with sorted keys (hashed by :func:`cache_folder`).
+        """
         return json.dumps(asdict(self), sort_keys=True)
 
 
 def max_triangles() -> int:
+    """The most triangles the viewer's page is asked to draw.
+
+    Returns
+    -------
+    int
+        ``LIGHTPROBE_VIEW_MAX_TRIANGLES``, or :data:`DEFAULT_MAX_TRIANGLES` (2,000,000) when it is unset or blank.
+
+    Raises
+    ------
+    UsageError
+        The variable is set to something other than a positive whole number.
+    """
     from ..util.limits import positive_env
 
     return positive_env("LIGHTPROBE_VIEW_MAX_TRIANGLES", DEFAULT_MAX_TRIANGLES)
 
 
 def max_pixels() -> int:
+    """The most probe pixels the viewer's page is asked to show.
+
+    Returns
+    -------
+    int
+        ``LIGHTPROBE_VIEW_MAX_PIXELS``, or :data:`DEFAULT_MAX_PIXELS` (2²⁵, 8192 × 4096) when it is unset or blank.
+
+    Raises
+    ------
+    UsageError
+        The variable is set to something other than a positive whole number.
+    """
     from ..util.limits import positive_env
 
     return positive_env("LIGHTPROBE_VIEW_MAX_PIXELS", DEFAULT_MAX_PIXELS)
 
 
 def check_inputs(probe: Path, mesh: Path | None) -> None:
-    """Refuse, with one line and before any baking, a probe or mesh beyond the viewer's limits (set by
-    ``LIGHTPROBE_VIEW_MAX_PIXELS`` and ``LIGHTPROBE_VIEW_MAX_TRIANGLES``)."""
+    """Refuse, with one line and before any baking, a probe or mesh beyond the viewer's limits.
+
+    The limits are set by ``LIGHTPROBE_VIEW_MAX_PIXELS`` and ``LIGHTPROBE_VIEW_MAX_TRIANGLES``
+    (:func:`max_pixels`, :func:`max_triangles`).
+
+    Parameters
+    ----------
+    probe : Path
+        The probe's image file; only its header is read, for its width × height.
+    mesh : Path or None
+        The mesh file, its triangles counted by :func:`mesh_triangle_count`; None: the built-in scene, not checked.
+
+    Raises
+    ------
+    BudgetError
+        The probe has more pixels, or the mesh more triangles, than the viewer's limit.
+    InputError
+        A file cannot be read.
+    """
     from ..maps.images import image_header
 
     header = image_header(probe)
@@ -87,7 +153,26 @@ def check_inputs(probe: Path, mesh: Path | None) -> None:
 
 
 def mesh_triangle_count(path: Path) -> int:
-    """Triangles in a mesh file, read from its header where the format has one (PLY), else by loading it."""
+    """Triangles in a mesh file, read from its header where the format has one (PLY), else by loading it.
+
+    Parameters
+    ----------
+    path : Path
+        A regular mesh file. A PLY whose first 4096 bytes state ``element face N`` is counted from that line; any
+        other file is loaded (:func:`lightprobe.render.scene.load_mesh`).
+
+    Returns
+    -------
+    int
+        The number of triangles (for a PLY header, its face count).
+
+    Raises
+    ------
+    InputError
+        The path is not a regular file, or the mesh cannot be read.
+    BudgetError
+        Loading a mesh of more triangles than ``LIGHTPROBE_MAX_TRIANGLES``.
+    """
     from ..maps.images import check_regular_file
 
     check_regular_file(path, "mesh")
@@ -106,7 +191,25 @@ def mesh_triangle_count(path: Path) -> int:
 
 
 def cache_folder(probe: Path, mesh: Path | None, options: BakeOptions, root: Path | None = None) -> Path:
-    """``root``/<key>: the key hashes the probe's and the mesh's bytes, the options and the format's version."""
+    """``root``/<key>: the key hashes the probe's and the mesh's bytes, the options and the format's version.
+
+    Parameters
+    ----------
+    probe : Path
+        The probe's file, whose bytes are hashed.
+    mesh : Path or None
+        The mesh's file, whose bytes are hashed; None for the built-in scene.
+    options : BakeOptions
+        The bake's options (:meth:`BakeOptions.key`).
+    root : Path or None
+        The cache's folder; None (default): ``$XDG_CACHE_HOME/lightprobe/view`` (``~/.cache`` without
+        ``XDG_CACHE_HOME``).
+
+    Returns
+    -------
+    Path
+        ``root`` / the first 24 hex digits of the SHA-256; not created here.
+    """
     from ..util.files import digest_file
 
     digest = hashlib.sha256(f"{FORMAT} {VERSION} {options.key()}".encode())
@@ -119,7 +222,19 @@ def cache_folder(probe: Path, mesh: Path | None, options: BakeOptions, root: Pat
 
 
 def read_manifest(folder: Path) -> dict | None:
-    """The bake's manifest, or None when the folder holds no complete bake of this format and version."""
+    """The bake's manifest, or None when the folder holds no complete bake of this format and version.
+
+    Parameters
+    ----------
+    folder : Path
+        A bake folder (its ``bake.json`` is read).
+
+    Returns
+    -------
+    dict or None
+        The manifest as :func:`bake` wrote it; None when ``bake.json`` is missing, unreadable, not JSON, or of another
+        format or version.
+    """
     try:
         doc = json.loads((folder / "bake.json").read_text())
     except (OSError, ValueError):
@@ -228,8 +343,36 @@ def _brdf_part(env, lighting, spec: str, index: int, options: BakeOptions, folde
 
 def bake(env, folder: Path, mesh: Path | None = None, options: BakeOptions = BakeOptions(),
          source: str | None = None) -> dict:
-    """Bake everything the page needs for ``env`` (and ``mesh``, or the built-in scene) into ``folder``, atomically
-    (a temporary folder beside it, renamed into place). Returns the manifest."""
+    """Bake everything the page needs for ``env`` (and ``mesh``, or the built-in scene) into ``folder``, atomically.
+
+    The parts are written into a temporary folder beside it (``.NAME.tmp-PID``), renamed into place once complete.
+    Returns the manifest.
+
+    Parameters
+    ----------
+    env : EnvMap
+        The probe: radiance, world frame, any layout. It is used as given (not turned toward its key light).
+    folder : Path
+        The bake's folder; an existing one is replaced.
+    mesh : Path or None
+        A mesh file, fitted and stood on a ground plane as :func:`lightprobe.render.scene.mesh_scene` does; None
+        (default): the built-in sphere and torus (:func:`lightprobe.render.scene.builtin_scene`).
+    options : BakeOptions
+        BRDFs, views, map size, background width and light parameters. Default: :class:`BakeOptions`'s defaults.
+    source : str or None
+        Recorded as the manifest's ``source`` (e.g. the probe's file name). Default None.
+
+    Returns
+    -------
+    dict
+        The manifest written as ``bake.json``: format, version, camera, meshes, SH, background, lights, BRDFs and the
+        seconds each part took (see the module docstring).
+
+    Raises
+    ------
+    UsageError
+        A BRDF spec is refused (check them first with :func:`check_brdfs`).
+    """
     from .. import __version__
     from ..exports.sh import export_threejs
     from ..glossy.radiance import prepare
@@ -270,7 +413,23 @@ def bake(env, folder: Path, mesh: Path | None = None, options: BakeOptions = Bak
 
 
 def check_brdfs(specs) -> tuple[str, ...]:
-    """The BRDF specs, each parsed once so a bad one is refused before any work."""
+    """The BRDF specs, each parsed once so a bad one is refused before any work.
+
+    Parameters
+    ----------
+    specs : iterable of str
+        BRDF specs as :func:`lightprobe.glossy.brdf.parse_brdf` reads them; at most 8.
+
+    Returns
+    -------
+    tuple of str
+        The specs as given, in order.
+
+    Raises
+    ------
+    UsageError
+        A spec is refused, or there are more than 8.
+    """
     from ..glossy.brdf import parse_brdf
 
     out = []

@@ -43,8 +43,21 @@ VENDOR = Path(__file__).resolve().parent / "vendor" / "three"
 
 
 def three_root() -> Path:
-    """The three.js modules inside the package (``viewer/vendor/three``): the wheel carries them, copied at build
-    time from the npm version the repository pins; a development checkout gets them from ``bash setup.sh``."""
+    """The three.js modules inside the package (``viewer/vendor/three``).
+
+    The wheel carries them, copied at build time from the npm version the repository pins; a development checkout gets
+    them from ``bash setup.sh``.
+
+    Returns
+    -------
+    Path
+        The folder (:data:`VENDOR`), holding ``build/three.module.js``.
+
+    Raises
+    ------
+    LightprobeError
+        The modules are not there.
+    """
     if not (VENDOR / "build" / "three.module.js").is_file():
         raise LightprobeError(f"this installation lacks the viewer's three.js modules ({VENDOR}): install the "
                               "lightprobe wheel, or run 'bash setup.sh' in a checkout")
@@ -52,7 +65,19 @@ def three_root() -> Path:
 
 
 def module_files(root: Path) -> list[str]:
-    """The three.js files the page needs: the entry modules and everything they import (relative imports)."""
+    """The three.js files the page needs: the entry modules and everything they import (relative imports).
+
+    Parameters
+    ----------
+    root : Path
+        The three.js folder (:func:`three_root`).
+
+    Returns
+    -------
+    list of str
+        Paths relative to ``root``, '/'-separated, sorted: :data:`ENTRY_MODULES` and every file reached from them by
+        ``./`` or ``../`` imports that stays inside ``root`` and exists.
+    """
     todo, seen = list(ENTRY_MODULES), set()
     while todo:
         rel = todo.pop()
@@ -68,7 +93,16 @@ def module_files(root: Path) -> list[str]:
 
 
 def page_html() -> tuple[str, str]:
-    """The page and its Content-Security-Policy (the one inline script, the import map, allowed by its hash)."""
+    """The page and its Content-Security-Policy (the one inline script, the import map, allowed by its hash).
+
+    Returns
+    -------
+    html : str
+        ``static/index.html`` with its ``{{CSP}}`` placeholder filled in.
+    csp : str
+        The policy: nothing by default; scripts, connections, styles and images from the page's own origin only
+        (images also ``data:`` and ``blob:``) and the import map by its SHA-256; no base URI, form action or framing.
+    """
     template = (STATIC / "index.html").read_text(encoding="utf-8")
     match = _IMPORTMAP.search(template)
     digest = base64.b64encode(hashlib.sha256(match.group(1).encode()).digest()).decode()
@@ -78,8 +112,23 @@ def page_html() -> tuple[str, str]:
 
 
 def safe_file(root: Path, rel: str) -> Path | None:
-    """The regular file ``rel`` (already percent-decoded, '/'-separated) names inside ``root``, or None when it
-    would leave the folder in any way (see the module docstring)."""
+    """The regular file ``rel`` names inside ``root``, or None when it would leave the folder in any way.
+
+    See the module docstring: no empty, ``.`` or ``..`` segment nor one starting with ``.``, no backslash or NUL, and
+    a real path (symlinks followed) inside ``root``.
+
+    Parameters
+    ----------
+    root : Path
+        The folder served (the bake folder).
+    rel : str
+        The requested path below ``root``, already percent-decoded, '/'-separated.
+
+    Returns
+    -------
+    Path or None
+        The file's resolved real path, or None.
+    """
     if not rel or "\x00" in rel or "\\" in rel:
         return None
     parts = rel.split("/")
@@ -96,7 +145,24 @@ def safe_file(root: Path, rel: str) -> Path | None:
 
 
 class ViewServer:
-    """Serves the page and one bake folder on 127.0.0.1 (``port`` 0: a free one) from a background thread."""
+    """Serves the page and one bake folder on 127.0.0.1 (``port`` 0: a free one) from a background thread.
+
+    The server starts when the object is made; ``url`` is its address. A ``with`` block closes it on leaving.
+
+    Parameters
+    ----------
+    bake : Path
+        The bake folder (:func:`lightprobe.viewer.bake.bake`), served under ``/bake/``.
+    port : int
+        The TCP port on 127.0.0.1; 0 (default): a free one, then in ``address`` and ``url``.
+
+    Raises
+    ------
+    LightprobeError
+        The package lacks its three.js modules (:func:`three_root`).
+    UsageError
+        The port cannot be listened on.
+    """
 
     def __init__(self, bake: Path, port: int = 0):
         self.bake = Path(bake).resolve()
@@ -186,6 +252,7 @@ class ViewServer:
             self._thread.join(0.5)
 
     def close(self) -> None:
+        """Stop serving and close the listening socket (what leaving a ``with`` block does)."""
         self.httpd.shutdown()
         self.httpd.server_close()
 
@@ -197,7 +264,29 @@ class ViewServer:
 
 
 def export_static(bake: Path, out: Path) -> Path:
-    """Write the page, its modules and a copy of the bake into ``out`` (a new or empty folder), atomically."""
+    """Write the page, its modules and a copy of the bake into ``out`` (a new or empty folder), atomically.
+
+    The tree is built in a temporary folder beside ``out`` (``.NAME.tmp-PID``) and renamed into place.
+
+    Parameters
+    ----------
+    bake : Path
+        The bake folder, copied whole into ``out/bake`` (symbolic links copied as the files they point to).
+    out : Path
+        The folder to write: new, or an empty folder.
+
+    Returns
+    -------
+    Path
+        ``out``, holding ``index.html``, ``static/``, ``modules/`` and ``bake/``.
+
+    Raises
+    ------
+    UsageError
+        ``out`` exists and is not an empty folder.
+    LightprobeError
+        The package lacks its three.js modules (:func:`three_root`).
+    """
     out = Path(out)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise UsageError(f"{out} exists and is not empty: give a new or empty folder for --export")
