@@ -59,16 +59,17 @@ def sh_json(sh: SHCoeffs, frame: Frame = WORLD, source: str | None = None) -> st
     Parameters
     ----------
     sh : SHCoeffs
-        Coefficients of either quantity, any order, any frame.
+        What to write, as for :func:`sh_document`.
     frame : Frame, default WORLD
-        The frame to state them in (a frame name is accepted too).
+        The frame the file states them in.
     source : str, optional
-        The map the coefficients came from; null in the file when None.
+        The map projected, as the user named it, or None.
 
     Returns
     -------
     str
-        The JSON document (strict JSON: no NaN or infinity).
+        ``lightprobe.sh`` text that :func:`read_sh_json` reads back; NaN and infinity are refused by ``json.dumps``
+        (SHCoeffs never hold them).
     """
     return json.dumps(sh_document(sh, frame, source), indent=1, allow_nan=False) + "\n"
 
