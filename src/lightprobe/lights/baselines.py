@@ -43,8 +43,7 @@ class PointLight:
 
     @property
     def yaw_elevation_deg(self) -> tuple[float, float]:
-        """(yaw, elevation) of the light's direction in degrees, as for an area light
-        (:func:`lightprobe.lights.decompose.yaw_elevation_deg`)."""
+        """(yaw, elevation) of the direction in degrees (:func:`lightprobe.lights.decompose.yaw_elevation_deg`)."""
         from .decompose import yaw_elevation_deg
 
         return yaw_elevation_deg(self.direction)
@@ -102,7 +101,9 @@ def _table(values: np.ndarray) -> np.ndarray:
 
 
 def median_cut(env: EnvMap, count: int, rows: int = 256) -> list[PointLight]:
-    """Debevec's median cut: split the lat-long map ``log2(count)`` times, every region along its longer side
+    """Debevec's median cut: ``count`` point lights, one per region of the map cut where its energy halves.
+
+    Split the lat-long map ``log2(count)`` times, every region along its longer side
     (its width measured at its middle latitude, so a polar region is not taken for a wide one) where the luminance
     power on either side is equal; one light per region at its energy centroid, with the region's RGB power. A
     count that is not a power of two cuts its last level's most energetic regions only (:func:`_regions`). A
@@ -180,7 +181,9 @@ def _halfway(cumulative: np.ndarray, total: float) -> int:
 
 
 def variance_minimisation(env: EnvMap, count: int, rows: int = 256) -> list[PointLight]:
-    """Viriyothai & Debevec's variance minimisation: split the lat-long map ``log2(count)`` times, every region by
+    """Viriyothai & Debevec's variance minimisation: ``count`` point lights, one per region of least-variance cuts.
+
+    Split the lat-long map ``log2(count)`` times, every region by
     the cut (any row or column boundary inside it) that minimises the two halves' summed variance
     Σ e·((sin θ_m·(φ − φ̄))² + (θ − θ̄)²) — e the pixels' luminance power, θ_m each half's middle latitude, so
     distances are angles on the sphere near that latitude. A count that is not a power of two cuts its last

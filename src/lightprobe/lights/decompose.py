@@ -293,8 +293,10 @@ def _responses(prefix, theta, cand_rows, cand_cols, radii, inner, outer, weight,
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def cap_sums(prefix, theta, cand_rows, cand_cols, radii, out):  # pragma: no cover - compiled
-    """out[i, k] = Σ of a lat-long's per-pixel values over the pixels whose centres lie within angle radii[k] of
-    the centre of pixel (cand_rows[i], cand_cols[i]). ``prefix`` (H, W + 1) holds each row's prefix sums;
+    """Sums of a lat-long's per-pixel values over caps of every radius around every candidate pixel, into ``out``.
+
+    out[i, k] = Σ of a lat-long's per-pixel values over the pixels whose centres lie within angle radii[k] of the
+    centre of pixel (cand_rows[i], cand_cols[i]). ``prefix`` (H, W + 1) holds each row's prefix sums;
     ``theta`` the rows' centre polar angles. Per row the cap is the azimuth interval
     |Δφ| ≤ arccos((cos r − cos θ cos θ_c) / (sin θ sin θ_c)) around the candidate's column; columns are counted by
     their centres. That interval's half-width depends only on the two rows, not on the column, so it is turned

@@ -95,9 +95,10 @@ def lights_json(dec: Decomposition, ambient_sh: SHCoeffs, source: str | None = N
 
 def point_lights_document(lights: list[PointLight], total: np.ndarray, method: str, parameters: dict,
                           timings: dict, source: str | None = None) -> dict:
-    """The schema's object for point lights (a baseline such as median cut): each light's radius and solid angle
-    are 0, its radiance and response null; there is no separate ambient (``ambient`` null): the lights carry the
-    whole map.
+    """The schema's object for point lights (a baseline such as median cut), which carry the whole map.
+
+    Each light's radius and solid angle are 0, its radiance and response null; there is no separate ambient (``ambient``
+    null): the lights carry the whole map.
 
     Parameters
     ----------

@@ -94,8 +94,9 @@ def max_pixels() -> int:
 
 
 def max_triangles() -> int:
-    """The most triangles of one scene, all meshes together: ``LIGHTPROBE_MAX_TRIANGLES``, or
-    :data:`DEFAULT_MAX_TRIANGLES` (2·10⁷).
+    """The most triangles of one scene, all meshes together: ``LIGHTPROBE_MAX_TRIANGLES``, or 2·10⁷.
+
+    The default is :data:`DEFAULT_MAX_TRIANGLES`.
 
     Returns
     -------
