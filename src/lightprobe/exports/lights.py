@@ -1,7 +1,7 @@
 """Area lights + ambient SH for engines: each light as the engine's directional light, in its own units and frame.
 
-Input: a :class:`~lightprobe.lights.lightsfile.LightSet` (world frame; each light's RGB ``power`` = ∫L dω over its cap of
-angular radius r; the ambient as radiance SH). The conversions, each named once:
+Input: a :class:`~lightprobe.lights.lightsfile.LightSet` (world frame; each light's RGB ``power`` = ∫L dω over its cap
+of angular radius r; the ambient as radiance SH). The conversions, each named once:
 
 * :func:`perpendicular_irradiance` — a directional light's "intensity × colour" in every engine here is the
   irradiance E⊥ it gives a surface facing it; a diffuse surface then reflects albedo · E⊥ · max(n·l, 0) / π (three.js,
@@ -43,15 +43,48 @@ BABYLON_DEFAULT_LIGHTS = 4  # a Babylon material's maxSimultaneousLights unless 
 
 
 def perpendicular_irradiance(radius: float, power: np.ndarray) -> np.ndarray:
-    """E⊥ (RGB irradiance, radiance × sr) of a uniform cap of angular ``radius`` and RGB ``power`` on a surface
-    facing its centre: P (1 + cos r)/2 (a point light, r = 0: P)."""
+    """E⊥ of a uniform cap of angular ``radius`` and RGB ``power`` on a surface facing its centre: P (1 + cos r)/2.
+
+    E⊥ is RGB irradiance (radiance × sr); a point light (r = 0) gives P.
+
+    Parameters
+    ----------
+    radius : float
+        The cap's angular radius r in radians (0 for a point light).
+    power : numpy.ndarray
+        (3,) the light's RGB power P = ∫L dω over its cap.
+
+    Returns
+    -------
+    numpy.ndarray
+        (3,) float64 E⊥, the irradiance (not divided by π) the cap gives a surface facing its centre.
+    """
     return np.asarray(power, dtype=np.float64) * (1 + math.cos(radius)) / 2
 
 
 def cap_sh(direction: np.ndarray, radius: float, power: np.ndarray, l_max: int) -> SHCoeffs:
-    """Radiance SH (world frame, the paper's basis) of a uniform cap: radiance P/Ω over the directions within
-    ``radius`` of ``direction``. Funk–Hecke: L_lm = L · 2π ∫_{cos r}^1 P_l(t) dt · Y_lm(d), with
-    ∫_x^1 P_0 = 1 − x and ∫_x^1 P_l = (P_{l−1}(x) − P_{l+1}(x)) / (2l + 1)."""
+    """Radiance SH (world frame, the paper's basis) of a uniform cap: radiance P/Ω within ``radius`` of ``direction``.
+
+    Funk–Hecke: L_lm = L · 2π ∫_{cos r}^1 P_l(t) dt · Y_lm(d), with ∫_x^1 P_0 = 1 − x and
+    ∫_x^1 P_l = (P_{l−1}(x) − P_{l+1}(x)) / (2l + 1). A cap of (nearly) no solid angle is a point light:
+    L_lm = P Y_lm(d).
+
+    Parameters
+    ----------
+    direction : numpy.ndarray
+        (3,) the cap's centre d, a world-frame unit vector (+Y up, front −Z).
+    radius : float
+        The cap's angular radius r in radians.
+    power : numpy.ndarray
+        (3,) RGB power P = ∫L dω of the cap (radiance × sr).
+    l_max : int
+        The highest band, ≥ 0.
+
+    Returns
+    -------
+    SHCoeffs
+        Radiance coefficients ((l_max+1)², 3), world frame, no window.
+    """
     from numpy.polynomial import legendre
 
     x = math.cos(radius)
@@ -69,7 +102,22 @@ def cap_sh(direction: np.ndarray, radius: float, power: np.ndarray, l_max: int) 
 
 
 def ambient_sh(lights: LightSet, folded: list[int], l_max: int = 2) -> SHCoeffs:
-    """The ambient's radiance SH (bands ≤ ``l_max``; zero if the file has none) plus the lights ``folded`` into it."""
+    """The ambient's radiance SH (bands ≤ ``l_max``; zero if the file has none) plus the lights ``folded`` into it.
+
+    Parameters
+    ----------
+    lights : LightSet
+        The lights file's lights and ambient (world frame); an ambient must be of order ≥ ``l_max``.
+    folded : list of int
+        Indices of the lights to add to the ambient as uniform caps (:func:`cap_sh`).
+    l_max : int, default 2
+        The highest band of the result.
+
+    Returns
+    -------
+    SHCoeffs
+        Radiance coefficients ((l_max+1)², 3) in the world frame.
+    """
     total = np.zeros((n_coeffs(l_max), 3))
     if lights.ambient is not None:
         total += lights.ambient.truncated(min(l_max, lights.ambient.l_max)).to_frame(WORLD).coeffs[:n_coeffs(l_max)]
@@ -84,9 +132,28 @@ def _colour_intensity(e: np.ndarray) -> tuple[list[float], float]:
 
 
 def engine_lights(lights: LightSet, frame: Frame, over_pi: bool = False) -> list[dict]:
-    """Each light as ``travel`` (unit, the direction the light travels, in ``frame``), ``toward`` (its opposite:
-    where the light is), ``colour`` (linear RGB, max 1) and ``intensity`` (E⊥, or E⊥/π with ``over_pi``), brightest
-    first."""
+    """Each light as an engine's directional light, in ``frame``, brightest first.
+
+    Each is a dict: ``travel`` (unit, the direction the light travels, in ``frame``), ``toward`` (its opposite:
+    where the light is), ``colour`` (linear RGB, max 1), ``intensity`` (E⊥, or E⊥/π with ``over_pi``) and
+    ``angular_radius_deg``.
+
+    Parameters
+    ----------
+    lights : LightSet
+        The lights (world frame, RGB power ∫L dω, angular radius in radians).
+    frame : Frame
+        The engine's frame, in which ``travel`` and ``toward`` are stated.
+    over_pi : bool, default False
+        Give E⊥/π (Unity, whose BRDF leaves out the 1/π) instead of E⊥.
+
+    Returns
+    -------
+    list of dict
+        One dict a light (lists of floats for the vectors and the colour, floats for the intensity and the radius
+        in degrees), sorted by intensity, largest first; a light with no power has colour (1, 1, 1) and
+        intensity 0.
+    """
     out = []
     for d, r, p in zip(lights.directions, lights.radii, lights.powers):
         e = perpendicular_irradiance(r, p) / (math.pi if over_pi else 1.0)
@@ -104,11 +171,28 @@ def _brightest(lights: LightSet) -> list[int]:
 
 # ---- the engines --------------------------------------------------------------------------------------------------
 def export_threejs_lights(lights: LightSet, frame: Frame = THREEJS) -> str:
-    """A three.js ObjectLoader JSON ``Group``: the ambient as a ``LightProbe`` (as :func:`lightprobe.exports.sh.
-    export_threejs`) and one ``DirectionalLight`` per light, placed 10 units toward the light with its target at the
-    origin (three.js lights along position − target). ``color`` is the sRGB hex three.js's ``Color`` decodes to the
-    linear colour (8 bits a channel: ≤ 0.4 % off); ``userData`` holds the exact linear colour. Intensity: E⊥
-    (three.js's lux since r155: its Lambert term divides by π)."""
+    """A three.js ObjectLoader JSON ``Group``: the ambient as a ``LightProbe`` and one ``DirectionalLight`` a light.
+
+    The ``LightProbe`` is as :func:`lightprobe.exports.sh.export_threejs` writes it. Each ``DirectionalLight`` is
+    placed 10 units toward the light with its target at the origin (three.js lights along position − target).
+    ``color`` is the sRGB hex three.js's ``Color`` decodes to the linear colour (8 bits a channel: ≤ 0.4 % off);
+    ``userData`` holds the exact linear colour. Intensity: E⊥ (three.js's lux since r155: its Lambert term divides
+    by π).
+
+    Parameters
+    ----------
+    lights : LightSet
+        The lights and the ambient's radiance SH (world frame), from
+        :func:`lightprobe.lights.lightsfile.read_lights_json`.
+    frame : Frame, default THREEJS
+        The frame of the lights' positions and of the probe's SH; the default is the frame three.js shows an
+        equirectangular background in.
+
+    Returns
+    -------
+    str
+        The JSON text of the ``Group`` (probe first, then the lights, brightest first).
+    """
     probe = json.loads(export_threejs(ambient_sh(lights, []), frame))["object"]
     children = [probe]
     for k, light in enumerate(engine_lights(lights, frame)):
@@ -133,11 +217,26 @@ def _srgb_hex(colour: list[float]) -> int:
 
 
 def export_filament_lights(lights: LightSet, frame: Frame = FILAMENT) -> str:
-    """Filament takes one directional light: the brightest as ``LightManager::Type::SUN`` (``direction`` = travel,
-    ``intensity`` E⊥ in lux with the IndirectLight at intensity 1, linear ``color``, ``sunAngularRadius`` the cap's
-    radius in degrees within Filament's 0.25°–20°); every other light is folded into the ambient, whose
-    ``irradiance`` table (IndirectLight::Builder::irradiance(3, sh)) is :func:`lightprobe.exports.sh.
-    filament_coefficients` of it."""
+    """Filament takes one directional light: the brightest as the SUN; every other light is folded into the ambient.
+
+    The brightest becomes ``LightManager::Type::SUN`` (``direction`` = travel, ``intensity`` E⊥ in lux with the
+    IndirectLight at intensity 1, linear ``color``, ``sunAngularRadius`` the cap's radius in degrees within
+    Filament's 0.25°–20°); every other light is folded into the ambient, whose ``irradiance`` table
+    (IndirectLight::Builder::irradiance(3, sh)) is :func:`lightprobe.exports.sh.filament_coefficients` of it.
+
+    Parameters
+    ----------
+    lights : LightSet
+        The file's lights (world frame): the brightest by E⊥ becomes the sun, the rest join the ambient SH.
+    frame : Frame, default FILAMENT
+        The frame of the sun's direction and of the irradiance table (Filament's: the world frame).
+
+    Returns
+    -------
+    str
+        JSON with ``frame``, ``indirectLightIntensity`` 1, ``irradiance`` (nine RGB rows, K_i Â_l L_lm / π),
+        ``folded_into_irradiance`` (how many lights) and ``sun`` (absent when there is no light).
+    """
     order = _brightest(lights)
     sun = engine_lights(LightSet(lights.directions[order[:1]], lights.radii[order[:1]], lights.powers[order[:1]],
                                  None, lights.method), frame) if order else []
@@ -153,10 +252,26 @@ def export_filament_lights(lights: LightSet, frame: Frame = FILAMENT) -> str:
 
 
 def export_babylon_lights(lights: LightSet, frame: Frame = BABYLON) -> str:
-    """Babylon: ``new DirectionalLight(name, Vector3.FromArray(direction), scene)`` per light (``direction`` =
-    travel in Babylon's frame), ``intensity`` E⊥ (its PBR Lambert term divides by π), ``diffuse`` the linear colour;
-    the ambient as the ``SphericalPolynomial`` of :func:`lightprobe.exports.sh.export_babylon`. A Babylon material
-    takes 4 lights unless its ``maxSimultaneousLights`` is raised: ``maxSimultaneousLights`` says how many."""
+    """Babylon: a ``DirectionalLight`` per light and the ambient as a ``SphericalPolynomial``.
+
+    Each light is for ``new DirectionalLight(name, Vector3.FromArray(direction), scene)`` (``direction`` = travel
+    in Babylon's frame), ``intensity`` E⊥ (its PBR Lambert term divides by π), ``diffuse`` the linear colour; the
+    ambient is the ``SphericalPolynomial`` of :func:`lightprobe.exports.sh.export_babylon`. A Babylon material
+    takes 4 lights unless its ``maxSimultaneousLights`` is raised: ``maxSimultaneousLights`` says how many.
+
+    Parameters
+    ----------
+    lights : LightSet
+        Read from a lights file (world frame): every light becomes a Babylon light, none is folded.
+    frame : Frame, default BABYLON
+        The frame of the directions and of the polynomial: Babylon's left-handed default, (x, y, −z) of world.
+
+    Returns
+    -------
+    str
+        JSON with ``frame``, ``directionalLights`` (brightest first), ``maxSimultaneousLights`` (at least 4) and
+        ``polynomial`` (nine RGB rows, order x, y, z, xx, yy, zz, yz, zx, xy).
+    """
     poly = babylon_polynomial(ambient_sh(lights, []), frame)
     out = [{"name": f"lightprobe light {k + 1}", "direction": light["travel"], "intensity": light["intensity"],
             "diffuse": light["colour"], "angularRadiusDeg": light["angular_radius_deg"]}
@@ -168,10 +283,25 @@ def export_babylon_lights(lights: LightSet, frame: Frame = BABYLON) -> str:
 
 
 def export_unity_lights(lights: LightSet, frame: Frame = UNITY) -> str:
-    """A C# method making one ``Light`` (``LightType.Directional``) per light — ``transform.rotation =
-    Quaternion.LookRotation(travel)`` (a Unity light shines along its +Z), linear ``color``, ``intensity`` E⊥/π
-    (Unity's BRDF leaves out the 1/π) — and setting ``RenderSettings.ambientProbe`` to the ambient
-    (:func:`lightprobe.exports.sh.unity_coefficients`). Needs a linear-colour-space project."""
+    """A C# method making one directional ``Light`` a light and setting ``RenderSettings.ambientProbe``.
+
+    Each ``Light`` (``LightType.Directional``) gets ``transform.rotation = Quaternion.LookRotation(travel)`` (a
+    Unity light shines along its +Z), linear ``color`` and ``intensity`` E⊥/π (Unity's BRDF leaves out the 1/π);
+    ``RenderSettings.ambientProbe`` is set to the ambient (:func:`lightprobe.exports.sh.unity_coefficients`).
+    Needs a linear-colour-space project.
+
+    Parameters
+    ----------
+    lights : LightSet
+        Area lights and ambient as the lights file gives them; the ambient's bands ≤ 2 fill the probe.
+    frame : Frame, default UNITY
+        The frame of the directions and of the SH: Unity's left-handed frame, (x, y, −z) of world.
+
+    Returns
+    -------
+    str
+        C# source of the static class ``LightprobeLights`` whose ``Apply()`` does the above.
+    """
     sh = unity_coefficients(ambient_sh(lights, []), frame)
     lines = [f"        sh[{ch}, {i}] = {sh[i, ch]:.9g}f;" for ch in range(3) for i in range(9)]
     for k, light in enumerate(engine_lights(lights, frame, over_pi=True)):
@@ -191,11 +321,34 @@ def export_unity_lights(lights: LightSet, frame: Frame = UNITY) -> str:
 
 
 def gltf_lights(lights: LightSet, specular_size: int = 32) -> tuple[dict, list[bytes]]:
-    """A glTF 2.0 document and its images: ``KHR_lights_punctual`` directional lights (``intensity`` E⊥ in lux,
-    linear ``color``), each on a node whose ``rotation`` turns the light's −Z onto its travel direction in
-    :data:`GLTF_NODES`, and the ambient as the scene's ``EXT_lights_image_based`` light
-    (:func:`lightprobe.exports.containers.gltf_ibl`): ``irradianceCoefficients`` of its SH, and — the file has no map — its
-    specular cube prefiltered from the ambient radiance the SH describes (clamped at 0; smooth, as an ambient is)."""
+    """A glTF 2.0 document and its images: ``KHR_lights_punctual`` directional lights and the ambient as IBL.
+
+    The lights (``intensity`` E⊥ in lux, linear ``color``) sit each on a node whose ``rotation`` turns the light's
+    −Z onto its travel direction in :data:`GLTF_NODES`; the ambient is the scene's ``EXT_lights_image_based`` light
+    (:func:`lightprobe.exports.containers.gltf_ibl`): ``irradianceCoefficients`` of its SH, and — the file has no
+    map — its specular cube prefiltered from the ambient radiance the SH describes (clamped at 0; smooth, as an
+    ambient is).
+
+    Parameters
+    ----------
+    lights : LightSet
+        The lights and the ambient's radiance SH (world frame); with no ambient the specular cube is black.
+    specular_size : int, default 32
+        The specular cube's face edge in texels: a power of two, at most 1024.
+
+    Returns
+    -------
+    document : dict
+        The glTF document, its ``images`` without data yet.
+    images : list of bytes
+        The specular cube's PNGs in the order of the document's ``images``: write both with
+        :func:`lightprobe.exports.containers.glb` or :func:`lightprobe.exports.containers.gltf_embedded`.
+
+    Raises
+    ------
+    UsageError
+        ``specular_size`` is not a power of two up to 1024.
+    """
     from .containers import gltf_ibl
     from ..maps import EnvMap
     from ..maps.layouts import LATLONG
@@ -231,8 +384,30 @@ def _quaternion_from_minus_z(travel) -> list[float]:
 
 
 def export_lights(lights: LightSet, target: str) -> str:
-    """The lights file for ``target`` (:data:`lightprobe.util.names.LIGHT_EXPORT_TARGETS`; glTF: :func:`gltf_lights`,
-    written with :func:`lightprobe.exports.containers.glb` or ``gltf_embedded``)."""
+    """The lights file for ``target`` (:data:`lightprobe.util.names.LIGHT_EXPORT_TARGETS`), in the target's frame.
+
+    glTF is not text: use :func:`gltf_lights`, written with :func:`lightprobe.exports.containers.glb` or
+    ``gltf_embedded``.
+
+    Parameters
+    ----------
+    lights : LightSet
+        The lights and the ambient's radiance SH (world frame), from
+        :func:`lightprobe.lights.lightsfile.read_lights_json`.
+    target : str
+        ``threejs``, ``filament``, ``babylon`` or ``unity``.
+
+    Returns
+    -------
+    str
+        The file's text, as :func:`export_threejs_lights`, :func:`export_filament_lights`,
+        :func:`export_babylon_lights` or :func:`export_unity_lights` writes it with its default frame.
+
+    Raises
+    ------
+    UsageError
+        ``target`` is not one of those four (``gltf`` included).
+    """
     writers = {"threejs": export_threejs_lights, "filament": export_filament_lights,
                "babylon": export_babylon_lights, "unity": export_unity_lights}
     if target not in writers:

@@ -48,46 +48,157 @@ def _nine(sh: SHCoeffs, target_frame: Frame) -> np.ndarray:
 
 
 def radiance_to_irradiance(c: np.ndarray) -> np.ndarray:
-    """L_lm → E_lm = Â_l L_lm (cosine convolution, paper eq. 7)."""
+    """L_lm → E_lm = Â_l L_lm (cosine convolution, paper eq. 7).
+
+    Parameters
+    ----------
+    c : numpy.ndarray
+        (9, 3) radiance coefficients L_lm of bands ≤ 2, flat order, RGB columns, in any frame and either sign
+        convention (Â_l depends on the band only).
+
+    Returns
+    -------
+    numpy.ndarray
+        (9, 3) irradiance coefficients E_lm (E not divided by π).
+    """
     return c * a_hat_per_coefficient(2)[:, None]
 
 
 def irradiance_to_lambertian(c: np.ndarray) -> np.ndarray:
-    """E → E/π (outgoing radiance of a white Lambertian surface)."""
+    """E → E/π (outgoing radiance of a white Lambertian surface).
+
+    Parameters
+    ----------
+    c : numpy.ndarray
+        Irradiance coefficients E_lm, any shape (here (9, 3)).
+
+    Returns
+    -------
+    numpy.ndarray
+        The same coefficients divided by π: E/π.
+    """
     return c / pi
 
 
 def premultiply_basis_constants(c: np.ndarray) -> np.ndarray:
-    """c_i → c_i K_i: the shader then evaluates bare polynomials (1, y, z, x, xy, yz, 3z²−1, xz, x²−y²)."""
+    """c_i → c_i K_i: the shader then evaluates bare polynomials (1, y, z, x, xy, yz, 3z²−1, xz, x²−y²).
+
+    Parameters
+    ----------
+    c : numpy.ndarray
+        (9, 3) coefficients of bands ≤ 2 in flat order, RGB columns; any quantity (Filament and Unity pass E/π).
+
+    Returns
+    -------
+    numpy.ndarray
+        (9, 3): row i times :data:`BASIS_CONSTANTS` K_i.
+    """
     return c * BASIS_CONSTANTS[:, None]
 
 
 def to_condon_shortley(c: np.ndarray) -> np.ndarray:
-    """Our basis → a CS-phase basis: negate the m = ±1 coefficients (L1−1, L11, L2−1, L21)."""
+    """Our basis → a CS-phase basis: negate the m = ±1 coefficients (L1−1, L11, L2−1, L21).
+
+    The same negation takes CS-phase coefficients back to our basis.
+
+    Parameters
+    ----------
+    c : numpy.ndarray
+        (9, 3) our-basis coefficients of bands ≤ 2 (or CS-phase ones, to go back), any quantity.
+
+    Returns
+    -------
+    numpy.ndarray
+        (9, 3) with rows 1, 3, 5 and 7 negated (:data:`CS_SIGNS`).
+    """
     return c * CS_SIGNS[:, None]
 
 
 def times_pi(c: np.ndarray) -> np.ndarray:
+    """c → π c: the glTF ``pi-radiance`` scaling of radiance coefficients (π L_lm).
+
+    Parameters
+    ----------
+    c : numpy.ndarray
+        Coefficients, any shape (here (9, 3) radiance L_lm).
+
+    Returns
+    -------
+    numpy.ndarray
+        The same coefficients times π.
+    """
     return c * pi
 
 
 # ---- targets --------------------------------------------------------------------------------------------------------
 def export_json(sh: SHCoeffs, frame: Frame = WORLD) -> str:
-    """lightprobe's own SH JSON (:mod:`lightprobe.sh.shfile`): radiance L_lm in the paper's basis (no CS phase), any
-    order, flat order, ``frame``."""
+    """lightprobe's own SH JSON (:mod:`lightprobe.sh.shfile`): radiance L_lm in the paper's basis (no CS phase).
+
+    Any order, flat order, stated in ``frame``.
+
+    Parameters
+    ----------
+    sh : SHCoeffs
+        Radiance coefficients, any order (written whole; the file records their quantity and window).
+    frame : Frame, default WORLD
+        The frame the file states them in.
+
+    Returns
+    -------
+    str
+        The ``lightprobe.sh`` JSON text (no ``source``).
+    """
     return sh_json(sh, frame)
 
 
 def threejs_coefficients(sh: SHCoeffs, frame: Frame = THREEJS) -> np.ndarray:
-    """three.js ``SphericalHarmonics3``: radiance L_lm (no CS phase; its getAt/getIrradianceAt use +0.488603 y etc.),
-    order L00, L1−1, L10, L11, L2−2, L2−1, L20, L21, L22, in the frame three.js shows an equirectangular
-    background in (:data:`lightprobe.maps.frames.THREEJS`: (−z, y, x) of world), so light comes from where the
-    background shows it. ``getIrradianceAt`` returns E; the shader multiplies by the Lambert BRDF (÷π)."""
+    """three.js ``SphericalHarmonics3``: radiance L_lm without the CS phase, in the frame of three.js's background.
+
+    Radiance L_lm (no CS phase; its getAt/getIrradianceAt use +0.488603 y etc.), order L00, L1−1, L10, L11, L2−2, L2−1,
+    L20, L21, L22, in the frame three.js shows an equirectangular background in (:data:`lightprobe.maps.frames.THREEJS`:
+    (−z, y, x) of world), so light comes from where the background shows it. ``getIrradianceAt`` returns E; the shader
+    multiplies by the Lambert BRDF (÷π).
+
+    Parameters
+    ----------
+    sh : SHCoeffs
+        Radiance coefficients, l_max ≥ 2 (bands above 2 are dropped), in any frame: they are converted.
+    frame : Frame, default THREEJS
+        The frame to state them in; the default is the one three.js shows an equirectangular background in.
+
+    Returns
+    -------
+    numpy.ndarray
+        (9, 3) radiance L_lm, RGB columns: row-major, the 27 floats of ``SphericalHarmonics3.fromArray``.
+
+    Raises
+    ------
+    UsageError
+        ``sh`` holds irradiance, or its order is below 2.
+    """
     return _nine(sh, frame)
 
 
 def export_threejs(sh: SHCoeffs, frame: Frame = THREEJS) -> str:
-    """A ``LightProbe`` in three.js JSON object format (``ObjectLoader``), ``sh`` = 27 floats, RGB per coefficient."""
+    """A ``LightProbe`` in three.js JSON object format (``ObjectLoader``), ``sh`` = 27 floats, RGB per coefficient.
+
+    Parameters
+    ----------
+    sh : SHCoeffs
+        Radiance coefficients, l_max ≥ 2, any frame.
+    frame : Frame, default THREEJS
+        The frame of the coefficients in the file (:func:`threejs_coefficients`).
+
+    Returns
+    -------
+    str
+        The JSON text: an identity-matrix ``LightProbe`` of intensity 1 holding radiance L_lm.
+
+    Raises
+    ------
+    UsageError
+        ``sh`` holds irradiance, or its order is below 2.
+    """
     c = threejs_coefficients(sh, frame)
     return json.dumps({
         "metadata": {"version": 4.6, "type": "Object", "generator": "lightprobe"},
@@ -106,33 +217,113 @@ def export_threejs(sh: SHCoeffs, frame: Frame = THREEJS) -> str:
 
 
 def filament_coefficients(sh: SHCoeffs, frame: Frame = FILAMENT) -> np.ndarray:
-    """Filament ``IndirectLight::Builder::irradiance(3, sh)``: sh[i] = L_lm · (1/π) · A_lm · Ĉ_l as IndirectLight.h
-    tabulates it (A_lm the CS-signed basis constants, L_lm Filament's CS-phase coefficients — the two signs cancel),
-    i.e. K_i Â_l L_lm / π with our L_lm: the shader's bare polynomial gives E/π. Filament frame (= world)."""
+    """Filament ``IndirectLight::Builder::irradiance(3, sh)``: K_i Â_l L_lm / π, whose bare polynomial gives E/π.
+
+    sh[i] = L_lm · (1/π) · A_lm · Ĉ_l as IndirectLight.h tabulates it (A_lm the CS-signed basis constants, L_lm
+    Filament's CS-phase coefficients — the two signs cancel), i.e. K_i Â_l L_lm / π with our L_lm: the shader's bare
+    polynomial gives E/π. Filament frame (= world).
+
+    Parameters
+    ----------
+    sh : SHCoeffs
+        Radiance L_lm to convert; order ≥ 2 (only bands 0–2 are kept), any frame.
+    frame : Frame, default FILAMENT
+        The target frame: Filament's world (right-handed, +Y up, camera along −Z: the world frame).
+
+    Returns
+    -------
+    numpy.ndarray
+        (9, 3) K_i Â_l L_lm / π, RGB columns, in Filament's order L00, L1−1, L10, L11, L2−2, L2−1, L20, L21, L22.
+
+    Raises
+    ------
+    UsageError
+        ``sh`` holds irradiance, or its order is below 2.
+    """
     c = _nine(sh, frame)
     return premultiply_basis_constants(irradiance_to_lambertian(radiance_to_irradiance(c)))
 
 
 def export_filament(sh: SHCoeffs, frame: Frame = FILAMENT) -> str:
-    """``sh.txt`` exactly as cmgen writes it: one line per coefficient, ``( r,  g,  b); // L00, irradiance,
-    pre-scaled base``, 15 decimals."""
+    """``sh.txt`` exactly as cmgen writes it: one line per coefficient, 15 decimals.
+
+    Each line reads ``( r,  g,  b); // L00, irradiance, pre-scaled base``.
+
+    Parameters
+    ----------
+    sh : SHCoeffs
+        The radiance SH cmgen would have computed, order ≥ 2.
+    frame : Frame, default FILAMENT
+        Passed to :func:`filament_coefficients`, which makes the nine values.
+
+    Returns
+    -------
+    str
+        Nine lines of K_i Â_l L_lm / π (the shader gives E/π).
+
+    Raises
+    ------
+    UsageError
+        ``sh`` holds irradiance, or its order is below 2.
+    """
     c = filament_coefficients(sh, frame)
     return "".join(f"({', '.join(f'{v: .15f}' for v in row)}); // {name(i)}, irradiance, pre-scaled base\n"
                    for i, row in enumerate(c))
 
 
 def unity_coefficients(sh: SHCoeffs, frame: Frame = UNITY) -> np.ndarray:
-    """Unity ``SphericalHarmonicsL2`` as its shaders read it (unity_SHAr… built from sh[c, 0..8]): coefficient i of
-    channel c is K_i Â_l L_lm / π with L_lm stated in Unity's left-handed frame (x, y, −z of world), order
-    L00, L1−1 (y), L10 (z), L11 (x), L2−2, L2−1, L20, L21, L22. ShadeSH9 then returns E/π, which Unity multiplies by
-    the albedo. (Unity does not document this layout; it follows from unity_SHAr = (sh[3], sh[1], sh[2],
-    sh[0] − sh[6]), unity_SHBr = (sh[4], sh[5], 3 sh[6], sh[7]), unity_SHC = sh[8].)"""
+    """Unity ``SphericalHarmonicsL2`` as its shaders read it: K_i Â_l L_lm / π in Unity's frame, giving E/π.
+
+    The shaders' unity_SHAr… are built from sh[c, 0..8]: coefficient i of channel c is K_i Â_l L_lm / π with L_lm stated
+    in Unity's left-handed frame (x, y, −z of world), order L00, L1−1 (y), L10 (z), L11 (x), L2−2, L2−1, L20, L21, L22.
+    ShadeSH9 then returns E/π, which Unity multiplies by the albedo. (Unity does not document this layout; it follows
+    from unity_SHAr = (sh[3], sh[1], sh[2], sh[0] − sh[6]), unity_SHBr = (sh[4], sh[5], 3 sh[6], sh[7]), unity_SHC =
+    sh[8].)
+
+    Parameters
+    ----------
+    sh : SHCoeffs
+        Radiance SH of order 2 or more (truncated to 2), stated in whatever frame.
+    frame : Frame, default UNITY
+        Where the coefficients end up: by default Unity's left-handed frame, (x, y, −z) of world.
+
+    Returns
+    -------
+    numpy.ndarray
+        (9, 3): row i, column c is ``sh[c, i]`` of ``SphericalHarmonicsL2``.
+
+    Raises
+    ------
+    UsageError
+        ``sh`` holds irradiance, or its order is below 2.
+    """
     c = _nine(sh, frame)
     return premultiply_basis_constants(irradiance_to_lambertian(radiance_to_irradiance(c)))
 
 
 def export_unity(sh: SHCoeffs, frame: Frame = UNITY, csharp: bool = True) -> str:
-    """A C# method returning the ``SphericalHarmonicsL2`` (``csharp``), or JSON ``{"sh": [[9 r], [9 g], [9 b]]}``."""
+    """A C# method returning the ``SphericalHarmonicsL2`` (``csharp``), or JSON ``{"sh": [[9 r], [9 g], [9 b]]}``.
+
+    Parameters
+    ----------
+    sh : SHCoeffs
+        The ambient as radiance SH (order 2 or more).
+    frame : Frame, default UNITY
+        Passed to :func:`unity_coefficients`; the JSON form records its name.
+    csharp : bool, default True
+        Write the C# class ``LightprobeAmbient`` with ``Create()``; False writes the JSON, which also names the
+        frame and the scaling.
+
+    Returns
+    -------
+    str
+        The C# source or the JSON text; values K_i Â_l L_lm / π (ShadeSH9 gives E/π).
+
+    Raises
+    ------
+    UsageError
+        ``sh`` holds irradiance, or its order is below 2.
+    """
     c = unity_coefficients(sh, frame)
     if not csharp:
         return json.dumps({"format": "UnityEngine.Rendering.SphericalHarmonicsL2", "frame": frame.name,
@@ -155,7 +346,27 @@ def gltf_coefficients(sh: SHCoeffs, scaling: str = "irradiance", frame: Frame = 
     (``convertIrradianceToLambertianRadiance``) and builds its polynomial with ``FromHarmonics`` — the same steps its
     own panorama path takes after convolving — and applies no handedness change to them, so they are stated in
     Babylon's frame (x, y, −z). ``scaling``: ``irradiance`` (default) E_lm = Â_l L_lm; ``pi-radiance``: π L_lm, the
-    old default, which Babylon's loader renders with the cosine lobe missing (kept for files made that way)."""
+    old default, which Babylon's loader renders with the cosine lobe missing (kept for files made that way).
+
+    Parameters
+    ----------
+    sh : SHCoeffs
+        Radiance coefficients with at least bands 0–2 (higher ones are ignored), from any frame.
+    scaling : str, default "irradiance"
+        ``irradiance`` or ``pi-radiance`` (:data:`lightprobe.util.names.GLTF_SCALINGS`), as above.
+    frame : Frame, default BABYLON
+        The frame of the result: Babylon's (x, y, −z) by default, as its loader takes them without a change.
+
+    Returns
+    -------
+    numpy.ndarray
+        (9, 3) coefficients with the Condon–Shortley phase, flat order, RGB columns.
+
+    Raises
+    ------
+    UsageError
+        ``sh`` holds irradiance, its order is below 2, or ``scaling`` is unknown.
+    """
     c = to_condon_shortley(_nine(sh, frame))
     if scaling == "irradiance":
         return radiance_to_irradiance(c)
@@ -165,8 +376,30 @@ def gltf_coefficients(sh: SHCoeffs, scaling: str = "irradiance", frame: Frame = 
 
 
 def export_gltf(sh: SHCoeffs, scaling: str = "irradiance", frame: Frame = BABYLON) -> str:
-    """The ``EXT_lights_image_based`` light object with ``irradianceCoefficients`` (merge it into a glTF; the
-    prefiltered specular images come from the radiance-map part of lightprobe)."""
+    """The ``EXT_lights_image_based`` light object with ``irradianceCoefficients``, to merge into a glTF.
+
+    The prefiltered specular images come from the radiance-map part of lightprobe.
+
+    Parameters
+    ----------
+    sh : SHCoeffs
+        Radiance coefficients, l_max ≥ 2, any frame.
+    scaling : str, default "irradiance"
+        ``irradiance`` or ``pi-radiance`` (see :func:`gltf_coefficients`).
+    frame : Frame, default BABYLON
+        The frame of the coefficients.
+
+    Returns
+    -------
+    str
+        JSON with ``extensionsUsed`` and the extension's one light (no specular images); ``extras`` names the
+        scaling, the basis and the frame.
+
+    Raises
+    ------
+    UsageError
+        ``sh`` holds irradiance, its order is below 2, or ``scaling`` is unknown.
+    """
     c = gltf_coefficients(sh, scaling, frame)
     return json.dumps({
         "extensionsUsed": ["EXT_lights_image_based"],
@@ -181,10 +414,23 @@ def export_gltf(sh: SHCoeffs, scaling: str = "irradiance", frame: Frame = BABYLO
 
 
 def babylon_polynomial_from_harmonics(h: np.ndarray) -> dict[str, np.ndarray]:
-    """Babylon's ``SphericalPolynomial.FromHarmonics`` with exact constants, for harmonics ``h`` in our basis (no CS
-    phase; Babylon's signs on x, y, yz, zx cancel its CS phase): the cosine convolution and ÷π of eq. 13, the
-    constant c4 h00 − c5 h20 spread over xx + yy + zz (= 1 on the sphere). (Babylon's 0.886277 is a misprint of
-    c4 = 0.886227.) Its ``FromPolynomial`` inverts this exactly, giving ``h`` back."""
+    """Babylon's ``SphericalPolynomial.FromHarmonics`` with exact constants, for harmonics ``h`` in our basis.
+
+    ``h`` has no CS phase (Babylon's signs on x, y, yz, zx cancel its CS phase): the cosine convolution and ÷π of eq.
+    13, the constant c4 h00 − c5 h20 spread over xx + yy + zz (= 1 on the sphere). (Babylon's 0.886277 is a misprint of
+    c4 = 0.886227.) Its ``FromPolynomial`` inverts this exactly, giving ``h`` back.
+
+    Parameters
+    ----------
+    h : numpy.ndarray
+        (9, 3) harmonics of bands ≤ 2 in our basis (no CS phase), flat order, RGB columns; Babylon passes its E/π
+        harmonics (:func:`babylon_polynomial`).
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        The nine terms ``x``, ``y``, ``z``, ``xx``, ``yy``, ``zz``, ``yz``, ``zx``, ``xy``, each (3,) RGB.
+    """
     L = irradiance_to_lambertian(h)  # noqa: N806 - the paper's notation, /π folded in
     const = C4 * L[0] - C5 * L[6]
     return {
@@ -195,25 +441,84 @@ def babylon_polynomial_from_harmonics(h: np.ndarray) -> dict[str, np.ndarray]:
 
 
 def babylon_harmonics(sh: SHCoeffs, frame: Frame = BABYLON) -> np.ndarray:
-    """The harmonics Babylon lights with: E/π SH (Â_l L_lm / π), CS phase, Babylon's frame — what its cube path
-    holds after ``convertIncidentRadianceToIrradiance`` and ``convertIrradianceToLambertianRadiance``, and what
-    ``preScaledHarmonics`` (= ``FromPolynomial``) recovers for the default PBR shader (which evaluates E/π)."""
+    """The harmonics Babylon lights with: E/π SH (Â_l L_lm / π), CS phase, Babylon's frame.
+
+    They are what its cube path holds after ``convertIncidentRadianceToIrradiance`` and
+    ``convertIrradianceToLambertianRadiance``, and what ``preScaledHarmonics`` (= ``FromPolynomial``) recovers for the
+    default PBR shader (which evaluates E/π).
+
+    Parameters
+    ----------
+    sh : SHCoeffs
+        The radiance SH to light with (l_max ≥ 2; bands past 2 left out), any frame.
+    frame : Frame, default BABYLON
+        The frame the harmonics are stated in; default Babylon's left-handed scene frame, (x, y, −z) of world.
+
+    Returns
+    -------
+    numpy.ndarray
+        (9, 3) Â_l L_lm / π with the CS phase, flat order, RGB columns.
+
+    Raises
+    ------
+    UsageError
+        ``sh`` holds irradiance, or its order is below 2.
+    """
     return to_condon_shortley(irradiance_to_lambertian(radiance_to_irradiance(_nine(sh, frame))))
 
 
 def babylon_polynomial(sh: SHCoeffs, frame: Frame = BABYLON) -> dict[str, np.ndarray]:
-    """Babylon.js ``SphericalPolynomial`` (x, y, z, xx, yy, zz, yz, zx, xy; RGB each) in Babylon's frame, as Babylon
-    itself makes it from a panorama: ``FromHarmonics`` of the E/π harmonics (:func:`babylon_harmonics`). Babylon's
-    default PBR path turns it back into those harmonics and renders E/π; evaluated directly as a polynomial it
-    would be convolved twice (Babylon's own convention, not a second step of ours)."""
+    """Babylon.js ``SphericalPolynomial`` (x, y, z, xx, yy, zz, yz, zx, xy; RGB each) in Babylon's frame.
+
+    Made as Babylon itself makes it from a panorama: ``FromHarmonics`` of the E/π harmonics (:func:`babylon_harmonics`).
+    Babylon's default PBR path turns it back into those harmonics and renders E/π; evaluated directly as a polynomial it
+    would be convolved twice (Babylon's own convention, not a second step of ours).
+
+    Parameters
+    ----------
+    sh : SHCoeffs
+        Radiance SH to turn into a polynomial: l_max of 2 or more (the rest unused), any frame.
+    frame : Frame, default BABYLON
+        The polynomial's frame (x, y, z are its axes); default Babylon's, (x, y, −z) of world.
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        ``x`` … ``xy`` (:func:`babylon_polynomial_from_harmonics`), each (3,) RGB.
+
+    Raises
+    ------
+    UsageError
+        ``sh`` holds irradiance, or its order is below 2.
+    """
     e_over_pi = irradiance_to_lambertian(radiance_to_irradiance(_nine(sh, frame)))
     return babylon_polynomial_from_harmonics(e_over_pi)
 
 
 def export_babylon(sh: SHCoeffs, frame: Frame = BABYLON) -> str:
-    """JSON with the ``polynomial`` (for ``SphericalPolynomial.FromArray``, order x, y, z, xx, yy, zz, yz, zx, xy),
-    the ``harmonics`` Babylon lights with (E/π, CS phase, for ``SphericalHarmonics.FromArray``) and, for tools that
-    want them, the ``radiance_harmonics`` (L_lm, CS phase), all in ``frame``."""
+    """Babylon.js JSON: the irradiance ``polynomial``, the ``harmonics`` it lights with and the radiance harmonics.
+
+    The ``polynomial`` (for ``SphericalPolynomial.FromArray``, order x, y, z, xx, yy, zz, yz, zx, xy), the
+    ``harmonics`` Babylon lights with (E/π, CS phase, for ``SphericalHarmonics.FromArray``) and, for tools that
+    want them, the ``radiance_harmonics`` (L_lm, CS phase), all in ``frame``.
+
+    Parameters
+    ----------
+    sh : SHCoeffs
+        Radiance coefficients, l_max ≥ 2, any frame.
+    frame : Frame, default BABYLON
+        The frame of everything in the file (named in it).
+
+    Returns
+    -------
+    str
+        The JSON text (``format`` ``BABYLON.SphericalPolynomial``, with a ``note`` on what each part is).
+
+    Raises
+    ------
+    UsageError
+        ``sh`` holds irradiance, or its order is below 2.
+    """
     poly = babylon_polynomial(sh, frame)
     order = ["x", "y", "z", "xx", "yy", "zz", "yz", "zx", "xy"]
     return json.dumps({
@@ -229,8 +534,28 @@ def export_babylon(sh: SHCoeffs, frame: Frame = BABYLON) -> str:
 
 
 def export_glsl(sh: SHCoeffs, frame: Frame = WORLD) -> str:
-    """A GLSL snippet of eq. 13: nine radiance coefficients L_lm (no CS phase, ``frame``) and the constants c1..c5;
-    ``lightprobeIrradiance(n)`` returns E(n) (divide by π for a Lambertian surface)."""
+    """A GLSL snippet of eq. 13: nine radiance coefficients L_lm (no CS phase, ``frame``) and the constants c1..c5.
+
+    ``lightprobeIrradiance(n)`` returns E(n) (divide by π for a Lambertian surface).
+
+    Parameters
+    ----------
+    sh : SHCoeffs
+        The lighting as radiance coefficients, at least up to band 2 (the snippet holds nine), any frame.
+    frame : Frame, default WORLD
+        The frame of the coefficients, and so of the normal ``n`` the shader function takes.
+
+    Returns
+    -------
+    str
+        GLSL source: ``const vec3`` coefficients ``L00`` … ``L22`` (``L1m1`` for L1−1), ``const float`` c1..c5
+        and ``vec3 lightprobeIrradiance(vec3 n)``.
+
+    Raises
+    ------
+    UsageError
+        ``sh`` holds irradiance, or its order is below 2.
+    """
     c = _nine(sh, frame)
     coeffs = "\n".join(f"const vec3 L{name(i)[1:].replace('-', 'm')} = vec3({', '.join(f'{v:.9g}' for v in row)});"
                        f"  // {name(i)}" for i, row in enumerate(c))
@@ -255,7 +580,33 @@ vec3 lightprobeIrradiance(vec3 n) {{
 
 def export(sh: SHCoeffs, target: str, frame: str | Frame | None = None, gltf_scaling: str = "irradiance",
            csharp: bool = True) -> str:
-    """Text of ``sh`` for ``target`` (one of :data:`TARGETS`), in the target's frame unless ``frame`` is given."""
+    """Text of ``sh`` for ``target`` (one of :data:`TARGETS`), in the target's frame unless ``frame`` is given.
+
+    Parameters
+    ----------
+    sh : SHCoeffs
+        Radiance coefficients; l_max ≥ 2 for every target but ``json``, which writes any order.
+    target : str
+        ``json``, ``threejs``, ``filament``, ``unity``, ``gltf``, ``babylon`` or ``glsl``.
+    frame : str or Frame, optional
+        A frame name of :data:`lightprobe.maps.frames.FRAMES` or a :class:`~lightprobe.maps.frames.Frame`;
+        default the target's own (:data:`DEFAULT_FRAMES`).
+    gltf_scaling : str, default "irradiance"
+        The ``gltf`` target's scaling: ``irradiance`` or ``pi-radiance`` (:func:`gltf_coefficients`).
+    csharp : bool, default True
+        The ``unity`` target: C# (True) or JSON (False).
+
+    Returns
+    -------
+    str
+        The file's text, as the target's exporter writes it.
+
+    Raises
+    ------
+    UsageError
+        ``target``, ``frame`` or ``gltf_scaling`` is unknown, or ``sh`` does not fit the target (irradiance, or
+        order below 2).
+    """
     if target not in TARGETS:
         raise UsageError(f"unknown export target {target!r}; choose one of {', '.join(TARGETS)}")
     f = frame_named(frame) if frame is not None else DEFAULT_FRAMES[target]

@@ -1,9 +1,10 @@
 """The point-light baselines users reach for today, with solid-angle weighting: Debevec's median cut (2005) and
 Viriyothai & Debevec's variance minimisation (2009).
 
-Quantities as in :mod:`lightprobe.lights.decompose`: directions in the world frame, ``power`` RGB ∫L dω of the region a light
-stands for. The map is first resampled (energy-conservingly) to a lat-long working grid; its pixels' luminance ×
-solid angle go into summed-area tables, so every region's energy and every candidate cut is O(1) or O(side).
+Quantities as in :mod:`lightprobe.lights.decompose`: directions in the world frame, ``power`` RGB ∫L dω of the
+region a light stands for. The map is first resampled (energy-conservingly) to a lat-long working grid; its pixels'
+luminance × solid angle go into summed-area tables, so every region's energy and every candidate cut is O(1) or
+O(side).
 
 Both split every region at each step, so both give 2^k lights; they differ in where a region is cut. Median cut
 halves the energy across the longer side; variance minimisation tries every cut of either side and takes the one
@@ -42,13 +43,25 @@ class PointLight:
 
     @property
     def yaw_elevation_deg(self) -> tuple[float, float]:
+        """(yaw, elevation) of the direction in degrees (:func:`lightprobe.lights.decompose.yaw_elevation_deg`)."""
         from .decompose import yaw_elevation_deg
 
         return yaw_elevation_deg(self.direction)
 
 
 def check_count(count) -> None:
-    """Refuse a light count the baselines cannot make: a whole number from 1 to :data:`MAX_POINT_LIGHTS`."""
+    """Refuse a light count the baselines cannot make: a whole number from 1 to :data:`MAX_POINT_LIGHTS`.
+
+    Parameters
+    ----------
+    count : int
+        The number of lights asked for: a Python or numpy integer (not a bool), 1 to 4096.
+
+    Raises
+    ------
+    UsageError
+        ``count`` is not such a number.
+    """
     if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or not 1 <= count <= MAX_POINT_LIGHTS:
         raise UsageError(f"median cut and variance minimisation need a whole number of lights from 1 to "
                          f"{MAX_POINT_LIGHTS}, got {count!r}")
@@ -88,12 +101,36 @@ def _table(values: np.ndarray) -> np.ndarray:
 
 
 def median_cut(env: EnvMap, count: int, rows: int = 256) -> list[PointLight]:
-    """Debevec's median cut: split the lat-long map ``log2(count)`` times, every region along its longer side
+    """Debevec's median cut: ``count`` point lights, one per region of the map cut where its energy halves.
+
+    Split the lat-long map ``log2(count)`` times, every region along its longer side
     (its width measured at its middle latitude, so a polar region is not taken for a wide one) where the luminance
     power on either side is equal; one light per region at its energy centroid, with the region's RGB power. A
     count that is not a power of two cuts its last level's most energetic regions only (:func:`_regions`). A
     region of one pixel is not cut, so a map whose energy sits in fewer pixels than ``count`` gives fewer lights.
-    The powers add up to ∫ of the working map (the resampled map: ∫L dω kept to ~1e-4)."""
+    The powers add up to ∫ of the working map (the resampled map: ∫L dω kept to ~1e-4).
+
+    Parameters
+    ----------
+    env : EnvMap
+        The environment: linear RGB radiance, any layout.
+    count : int
+        The number of lights, 1 to :data:`MAX_POINT_LIGHTS`; any count, not only powers of two.
+    rows : int, default 256
+        Rows of the lat-long working grid (rows × 2·rows) the cuts are made on; ``env`` is resampled to it unless
+        it already is a lat-long of that many rows.
+
+    Returns
+    -------
+    list of PointLight
+        At most ``count`` lights, one per region in the order the cuts leave them (not sorted by power), each at
+        its region's energy centroid (a world-frame unit vector) with the region's RGB power ∫L dω.
+
+    Raises
+    ------
+    UsageError
+        ``count`` is not a whole number from 1 to :data:`MAX_POINT_LIGHTS` (:func:`check_count`).
+    """
     check_count(count)
     work, rgb, energy = _working(env, rows)
     h, w = work.grid
@@ -144,12 +181,36 @@ def _halfway(cumulative: np.ndarray, total: float) -> int:
 
 
 def variance_minimisation(env: EnvMap, count: int, rows: int = 256) -> list[PointLight]:
-    """Viriyothai & Debevec's variance minimisation: split the lat-long map ``log2(count)`` times, every region by
+    """Viriyothai & Debevec's variance minimisation: ``count`` point lights, one per region of least-variance cuts.
+
+    Split the lat-long map ``log2(count)`` times, every region by
     the cut (any row or column boundary inside it) that minimises the two halves' summed variance
     Σ e·((sin θ_m·(φ − φ̄))² + (θ − θ̄)²) — e the pixels' luminance power, θ_m each half's middle latitude, so
     distances are angles on the sphere near that latitude. A count that is not a power of two cuts its last
     level's regions of largest variance only (:func:`_regions`). One light per region at its energy centroid with
-    the region's RGB power (Σ = ∫ of the working map). A region of one pixel, or one without energy, is not cut."""
+    the region's RGB power (Σ = ∫ of the working map). A region of one pixel, or one without energy, is not cut.
+
+    Parameters
+    ----------
+    env : EnvMap
+        The probe, linear RGB radiance in any layout; its luminance power drives the variance.
+    count : int
+        How many lights, from 1 to :data:`MAX_POINT_LIGHTS` (4096); a count between powers of two splits only the
+        highest-variance regions of the last level.
+    rows : int, default 256
+        Height of the lat-long grid the variance tables are built on (width 2·rows).
+
+    Returns
+    -------
+    list of PointLight
+        Up to ``count`` directional lights (fewer where regions cannot be cut), listed region by region: direction
+        the energy-weighted mean over the region (world frame, unit), power the region's RGB ∫L dω.
+
+    Raises
+    ------
+    UsageError
+        The count is a bool, not an integer, or outside 1..4096.
+    """
     check_count(count)
     work, rgb, energy = _working(env, rows)
     h, w = work.grid

@@ -1,7 +1,7 @@
 """An environment map as circular area lights plus an ambient remainder (Arbree, Walter & Bala 2005; docs/spec.md §5).
 
-Quantities: lights are in the **world frame** (docs/spec.md §1: +Y up, front −Z). A light's ``power`` is ∫L dω over the
-pixels it took (RGB, radiance × steradians: the same unit as :meth:`lightprobe.maps.EnvMap.integral`), its
+Quantities: lights are in the **world frame** (docs/spec.md §1: +Y up, front −Z). A light's ``power`` is ∫L dω over
+the pixels it took (RGB, radiance × steradians: the same unit as :meth:`lightprobe.maps.EnvMap.integral`), its
 ``radiance`` that power over its cap's solid angle. The ambient map is the original map, same layout and grid, with
 the lights' pixels set to zero — so Σ light power + ∫ ambient dω = ∫ original dω per channel, to float rounding.
 
@@ -45,6 +45,17 @@ class LightParams:
     working_rows: int = 256  # the lat-long working grid (working_rows × 2·working_rows) the responses use
 
     def check(self) -> None:
+        """Refuse parameters outside their ranges, naming every bad one in one message.
+
+        The ranges: 0 < inner ratio < 1; 0 ≤ surround weight ≤ 10⁶; 1 to 200 filter sizes;
+        0 < min extent ≤ max extent ≤ 180°; 0 < candidate fraction ≤ 1; 0 ≤ stop fraction < 1; 1 to 10000 lights;
+        a working grid of 16 to 4096 rows.
+
+        Raises
+        ------
+        UsageError
+            One or more parameters are out of range.
+        """
         bad = []
         if not 0 < self.inner_ratio < 1:
             bad.append(f"inner ratio {self.inner_ratio} (must be in (0, 1))")
@@ -66,7 +77,13 @@ class LightParams:
             raise UsageError("bad light-extraction parameters: " + "; ".join(bad))
 
     def outer_radii(self) -> np.ndarray:
-        """r_o of each filter size (radians): extents 2 r_o in geometric steps from min to max."""
+        """r_o of each filter size (radians): extents 2 r_o in geometric steps from min to max.
+
+        Returns
+        -------
+        numpy.ndarray
+            (sizes,) float64 outer radii in radians, from ``min_extent_deg``/2 to ``max_extent_deg``/2.
+        """
         extents = np.geomspace(self.min_extent_deg, self.max_extent_deg, self.sizes)
         return np.radians(extents) / 2
 
@@ -86,12 +103,23 @@ class AreaLight:
 
     @property
     def yaw_elevation_deg(self) -> tuple[float, float]:
+        """(yaw, elevation) of the light's direction in degrees (see :func:`yaw_elevation_deg`)."""
         return yaw_elevation_deg(self.direction)
 
 
 def yaw_elevation_deg(direction: np.ndarray) -> tuple[float, float]:
-    """Yaw (degrees, 0 at the front −Z, positive towards +X) and elevation (degrees above the horizon) of a world
-    direction."""
+    """Yaw (degrees, 0 at the front −Z, positive towards +X) and elevation (degrees above the horizon) of a direction.
+
+    Parameters
+    ----------
+    direction : numpy.ndarray
+        (3,) unit vector (x, y, z) in the world frame (+Y up, front −Z).
+
+    Returns
+    -------
+    tuple of (float, float)
+        Yaw in [−180°, 180°] and elevation in [−90°, 90°].
+    """
     x, y, z = direction
     return math.degrees(math.atan2(x, -z)), math.degrees(math.asin(max(-1.0, min(1.0, float(y)))))
 
@@ -111,12 +139,35 @@ class Decomposition:
 
     @property
     def light_power(self) -> np.ndarray:
+        """Σ of the lights' RGB powers (∫L dω), (3,); zeros when there is no light."""
         return np.sum([light.power for light in self.lights], axis=0) if self.lights else np.zeros(3)
 
 
 def decompose(env: EnvMap, params: LightParams | None = None) -> Decomposition:
-    """Find the area lights of ``env`` (any layout) by the centre–surround search of docs/spec.md §5 and return them with
-    the ambient map. Deterministic; a map with nothing brighter than its surroundings gives no lights."""
+    """Find the area lights of ``env`` (any layout) by the centre–surround search of docs/spec.md §5.
+
+    They are returned with the ambient map. Deterministic; a map with nothing brighter than its surroundings gives
+    no lights.
+
+    Parameters
+    ----------
+    env : EnvMap
+        The environment: linear RGB radiance, any layout (directions in the world frame).
+    params : LightParams, optional
+        The search's parameters; default the paper's (:class:`LightParams`).
+
+    Returns
+    -------
+    Decomposition
+        The lights in the order found (world frame, RGB power ∫L dω), the ambient (``env`` with their pixels set
+        to 0, same layout and grid, float32), the parameters, ``total`` (∫ ``env`` dω per channel), ``timings``
+        (``filter`` and ``extract``, seconds) and ``rejected_share``.
+
+    Raises
+    ------
+    UsageError
+        A parameter is out of range (:meth:`LightParams.check`).
+    """
     params = params or LightParams()
     params.check()
     clock = {"start": time.perf_counter()}
@@ -174,7 +225,7 @@ def decompose(env: EnvMap, params: LightParams | None = None) -> Decomposition:
 
 # ---- the working grid -----------------------------------------------------------------------------------------------
 def _working_grid(env: EnvMap, rows: int) -> EnvMap:
-    """The map resampled (energy-conservingly, :func:`lightprobe.maps.resampling`) to a lat-long of ``rows`` ×
+    """The map resampled (energy-conservingly, :mod:`lightprobe.maps.resampling`) to a lat-long of ``rows`` ×
     2·rows — up as well as down: the smallest filter's inner cap (1.7° by default) must span several working
     pixels, or its sum counts one pixel or none and a uniform map shows spurious lights. A lat-long of that size
     is used as it is."""
@@ -242,13 +293,31 @@ def _responses(prefix, theta, cand_rows, cand_cols, radii, inner, outer, weight,
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def cap_sums(prefix, theta, cand_rows, cand_cols, radii, out):  # pragma: no cover - compiled
-    """out[i, k] = Σ of a lat-long's per-pixel values over the pixels whose centres lie within angle radii[k] of
-    the centre of pixel (cand_rows[i], cand_cols[i]). ``prefix`` (H, W + 1) holds each row's prefix sums;
+    """Sums of a lat-long's per-pixel values over caps of every radius around every candidate pixel, into ``out``.
+
+    out[i, k] = Σ of a lat-long's per-pixel values over the pixels whose centres lie within angle radii[k] of the
+    centre of pixel (cand_rows[i], cand_cols[i]). ``prefix`` (H, W + 1) holds each row's prefix sums;
     ``theta`` the rows' centre polar angles. Per row the cap is the azimuth interval
     |Δφ| ≤ arccos((cos r − cos θ cos θ_c) / (sin θ sin θ_c)) around the candidate's column; columns are counted by
     their centres. That interval's half-width depends only on the two rows, not on the column, so it is turned
     into integer column offsets once per candidate row (candidates sorted by row pay it once per row) and each cap
-    is then two prefix-sum reads per row."""
+    is then two prefix-sum reads per row.
+
+    Parameters
+    ----------
+    prefix : numpy.ndarray
+        (H, W + 1) float64: each row's prefix sums of the lat-long's per-pixel values, with a leading 0.
+    theta : numpy.ndarray
+        (H,) polar angle of each row's centre, radians from +Y (row r at (r + ½)/H · π).
+    cand_rows : numpy.ndarray
+        (N,) int64 row of each candidate centre; sorted by row for speed.
+    cand_cols : numpy.ndarray
+        (N,) int64 column of each candidate centre.
+    radii : numpy.ndarray
+        (K,) float64 cap radii in radians.
+    out : numpy.ndarray
+        (N, K) float64, overwritten with the sums.
+    """
     h, w = prefix.shape[0], prefix.shape[1] - 1
     nk = radii.shape[0]
     dphi = 2.0 * math.pi / w
@@ -309,8 +378,27 @@ OUTLINE = np.array([0.1, 1.0, 0.2])  # display-encoded colour of a light's cap o
 
 
 def preview(env: EnvMap, lights: list[AreaLight], rows: int = 256) -> np.ndarray:
-    """The probe as a tone-mapped lat-long image (rows × 2·rows, display-encoded float RGB in [0, 1]) with each
-    light's cap outlined (the pixels within half a pixel of its radius) and its centre marked."""
+    """The probe as a tone-mapped lat-long image with each light's cap outlined and its centre marked.
+
+    The image is rows × 2·rows, display-encoded float RGB in [0, 1], at the exposure that maps the map's mean
+    luminance to the key 0.18; a cap's outline is the pixels within half a pixel of its radius, drawn in
+    :data:`OUTLINE`.
+
+    Parameters
+    ----------
+    env : EnvMap
+        The environment: linear RGB radiance, any layout (resampled to the lat-long).
+    lights : list of AreaLight
+        The lights to draw (world frame); anything with a ``direction`` and an angular ``radius`` in radians will
+        do, such as a :class:`~lightprobe.lights.baselines.PointLight`, whose radius 0 shows as a dot.
+    rows : int, default 256
+        The image's height in pixels; its width is 2·rows.
+
+    Returns
+    -------
+    numpy.ndarray
+        (rows, 2·rows, 3) float64 display-encoded sRGB values in [0, 1].
+    """
     from ..maps.tonemap import auto_exposure, tonemap
 
     work = env.to(LATLONG, rows)

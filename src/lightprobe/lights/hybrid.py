@@ -50,7 +50,19 @@ class HybridIrradiance:
     lights: tuple[LightPixels, ...]
 
     def evaluate(self, normals: np.ndarray) -> np.ndarray:
-        """Irradiance E (not /π) at world-frame unit normals (..., 3); returns (..., 3)."""
+        """Irradiance E (not /π) at world-frame unit normals (..., 3); returns (..., 3).
+
+        Parameters
+        ----------
+        normals : numpy.ndarray
+            (..., 3) unit normals in the world frame (+Y up, front −Z).
+
+        Returns
+        -------
+        numpy.ndarray
+            (..., 3) float64 RGB irradiance E: the ambient's SH irradiance plus each light's exact clamped-cosine
+            sum (no shadows).
+        """
         from ..maps.lookups import clamped_cosine_sums
 
         normals = np.asarray(normals, dtype=np.float64)
@@ -72,9 +84,33 @@ class HybridIrradiance:
 def hybrid_irradiance(env: EnvMap, decomposition: Decomposition | None = None,
                       ambient_order: int = DEFAULT_AMBIENT_ORDER, params: LightParams | None = None
                       ) -> HybridIrradiance:
-    """The hybrid irradiance of ``env`` (any layout): its decomposition (found here with ``params`` unless given —
-    it must be of this very map) split into each light's own pixels (a pixel belongs to the first light whose cap
-    holds it, as the extraction took them) and the ambient's SH of order ``ambient_order``."""
+    """The hybrid irradiance of ``env`` (any layout): each light's own pixels and the ambient's SH.
+
+    The decomposition (found here with ``params`` unless given — it must be of this very map) is split into each
+    light's own pixels (a pixel belongs to the first light whose cap holds it, as the extraction took them) and the
+    ambient's SH of order ``ambient_order``.
+
+    Parameters
+    ----------
+    env : EnvMap
+        The environment: linear RGB radiance, any layout.
+    decomposition : Decomposition, optional
+        :func:`~lightprobe.lights.decompose.decompose` of this very ``env`` (not checked); default found here.
+    ambient_order : int, default DEFAULT_AMBIENT_ORDER
+        The SH order of the ambient (12: within 1 % mean / 5 % max of brute force on the test probes).
+    params : LightParams, optional
+        The search's parameters when the decomposition is found here (ignored otherwise); default the paper's.
+
+    Returns
+    -------
+    HybridIrradiance
+        The ambient as irradiance SH (world frame) and the lights' pixels, ready to evaluate.
+
+    Raises
+    ------
+    UsageError
+        A search parameter is out of range.
+    """
     dec = decomposition if decomposition is not None else decompose(env, params)
     ambient = project(dec.ambient, ambient_order).to_irradiance()
     dirs = env.directions().reshape(-1, 3)
@@ -93,13 +129,58 @@ def hybrid_irradiance(env: EnvMap, decomposition: Decomposition | None = None,
 
 def hybrid_irradiance_map(env: EnvMap, target, size: int, ambient_order: int = DEFAULT_AMBIENT_ORDER,
                           hybrid: HybridIrradiance | None = None) -> IrradianceMap:
-    """An irradiance map (E, not /π) of ``env`` by the hybrid, in layout ``target`` of ``size`` — the counterpart of
-    :func:`lightprobe.sh.irradiance.irradiance_map` for ``method="hybrid"``."""
+    """An irradiance map (E, not /π) of ``env`` by the hybrid, in layout ``target`` of ``size``.
+
+    The counterpart of :func:`lightprobe.sh.irradiance.irradiance_map` for ``method="hybrid"``.
+
+    Parameters
+    ----------
+    env : EnvMap
+        The environment: linear RGB radiance, any layout.
+    target : str or Layout
+        The output layout: a name of :data:`lightprobe.maps.layouts.LAYOUTS` or a
+        :class:`~lightprobe.maps.layouts.Layout`.
+    size : int
+        The output size, ≥ 1, as the layout defines it (the height of a lat-long, the face edge of a cube).
+    ambient_order : int, default DEFAULT_AMBIENT_ORDER
+        The ambient's SH order when the hybrid is made here (ignored when ``hybrid`` is given).
+    hybrid : HybridIrradiance, optional
+        :func:`hybrid_irradiance` of this ``env``, to reuse it; default made here with the paper's parameters.
+
+    Returns
+    -------
+    IrradianceMap
+        float32 irradiance E per texel, the texel's direction taken as the world-frame normal; texels outside the
+        layout's valid area are 0; method ``hybrid``.
+
+    Raises
+    ------
+    LayoutError
+        ``target`` is not a known layout, or ``size`` is below 1.
+    """
     hybrid = hybrid or hybrid_irradiance(env, ambient_order=ambient_order)
     return irradiance_map_of(hybrid.evaluate, target, size, "hybrid")
 
 
 def hybrid_error_report(env: EnvMap, normals: np.ndarray, reference: np.ndarray, hybrid: HybridIrradiance
                         ) -> ErrorReport:
-    """Both error measures of docs/spec.md §3 for the hybrid at ``normals``, against brute force ``reference`` (RGB)."""
+    """Both error measures of docs/spec.md §3 for the hybrid at ``normals``, against brute force ``reference`` (RGB).
+
+    Parameters
+    ----------
+    env : EnvMap
+        The environment the hybrid was made from (its integral normalises the ``paper_*`` measures).
+    normals : numpy.ndarray
+        (N, 3) world-frame unit normals.
+    reference : numpy.ndarray
+        (N, 3) brute-force RGB irradiance E (not divided by π) at ``normals``
+        (:func:`lightprobe.sh.irradiance.brute_irradiance`).
+    hybrid : HybridIrradiance
+        The hybrid of ``env``.
+
+    Returns
+    -------
+    ErrorReport
+        Method ``hybrid``, ``l_max`` the ambient's order, window ``none``.
+    """
     return compare_irradiance(env, hybrid.evaluate(normals), reference, hybrid.ambient.l_max, "none", "hybrid")

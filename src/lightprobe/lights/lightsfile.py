@@ -38,7 +38,23 @@ FORMAT, VERSION = "lightprobe.lights", 1
 
 
 def lights_document(dec: Decomposition, ambient_sh: SHCoeffs, source: str | None = None) -> dict:
-    """The schema's object for a decomposition and its ambient's radiance SH."""
+    """The schema's object for a decomposition and its ambient's radiance SH.
+
+    Parameters
+    ----------
+    dec : Decomposition
+        The lights found (world frame) and the ambient map (:func:`lightprobe.lights.decompose.decompose`).
+    ambient_sh : SHCoeffs
+        Radiance SH of ``dec.ambient``, any order; stated in the world frame in the file.
+    source : str, optional
+        The map the lights came from; null in the file when None.
+
+    Returns
+    -------
+    dict
+        The ``lightprobe.lights`` version 1 object, method ``arbree2005`` (see the module docstring), ready for
+        ``json.dumps``.
+    """
     total_y = float(luminance(dec.total))
     light_y = float(luminance(dec.light_power))
     lights = []
@@ -57,14 +73,53 @@ def lights_document(dec: Decomposition, ambient_sh: SHCoeffs, source: str | None
 
 
 def lights_json(dec: Decomposition, ambient_sh: SHCoeffs, source: str | None = None) -> str:
+    """The schema's JSON text for a decomposition (:func:`lights_document`, indented, ending in a newline).
+
+    Parameters
+    ----------
+    dec : Decomposition
+        What to write, as for :func:`lights_document`.
+    ambient_sh : SHCoeffs
+        The ambient's radiance SH, as for :func:`lights_document`.
+    source : str, optional
+        The probe the lights were found in (its path as the user gave it), or None.
+
+    Returns
+    -------
+    str
+        The ``lightprobe.lights`` text a lights export reads back (:func:`read_lights_json`): strict JSON, no NaN
+        or infinity, indented by one space, with a final newline.
+    """
     return json.dumps(lights_document(dec, ambient_sh, source), indent=1, allow_nan=False) + "\n"
 
 
 def point_lights_document(lights: list[PointLight], total: np.ndarray, method: str, parameters: dict,
                           timings: dict, source: str | None = None) -> dict:
-    """The schema's object for point lights (a baseline such as median cut): each light's radius and solid angle
-    are 0, its radiance and response null; there is no separate ambient (``ambient`` null): the lights carry the
-    whole map."""
+    """The schema's object for point lights (a baseline such as median cut), which carry the whole map.
+
+    Each light's radius and solid angle are 0, its radiance and response null; there is no separate ambient (``ambient``
+    null): the lights carry the whole map.
+
+    Parameters
+    ----------
+    lights : list of PointLight
+        The lights, world frame, RGB power ∫L dω each.
+    total : numpy.ndarray
+        (3,) RGB ∫ map dω, for ``total_power`` and the shares.
+    method : str
+        The method's name in the file (e.g. ``mediancut``).
+    parameters : dict
+        The method's parameters (e.g. ``count`` and ``working_rows``).
+    timings : dict
+        Named durations in seconds.
+    source : str, optional
+        The map the lights came from; null in the file when None.
+
+    Returns
+    -------
+    dict
+        The ``lightprobe.lights`` version 1 object, ready for ``json.dumps``.
+    """
     total_y = float(luminance(total))
     powers = np.sum([light.power for light in lights], axis=0) if lights else np.zeros(3)
     share = float(luminance(powers)) / total_y if total_y > 0 else 0.0
@@ -99,9 +154,31 @@ class LightSet:
 
 
 def read_lights_json(text: str | bytes, what: str = "lights file") -> LightSet:
-    """The lights of a ``lightprobe.lights`` v1 document; every field the exports use is checked (one clear
-    :class:`~lightprobe.util.errors.InputError` otherwise). Directions are normalised; a radius must be within
-    0°..90°, powers finite and non-negative."""
+    """The lights of a ``lightprobe.lights`` v1 document; every field the exports use is checked.
+
+    Anything wrong raises one clear :class:`~lightprobe.util.errors.InputError`. Directions are normalised; a
+    radius must be within 0°..90°, powers finite and non-negative.
+
+    Parameters
+    ----------
+    text : str or bytes
+        The document, at most :data:`MAX_BYTES` (16 MiB) and :data:`MAX_LIGHTS` lights.
+    what : str, default "lights file"
+        What is read, for messages (e.g. the file's name).
+
+    Returns
+    -------
+    LightSet
+        Unit directions (n, 3) in the world frame, radii (n,) in radians, RGB powers (n, 3) ∫L dω, the ambient's
+        radiance SH (None when ``ambient`` is null) and the method.
+
+    Raises
+    ------
+    InputError
+        The text is not such a document, its frame is not ``world``, or a field the exports use is missing or
+        wrong (the method, a light's direction, radius or power, the ambient's SH document, which must be
+        radiance).
+    """
     from ..sh.shfile import read_sh_json, versioned_document
 
     doc, fail = versioned_document(text, what, FORMAT, VERSION, MAX_BYTES)

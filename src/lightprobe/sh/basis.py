@@ -34,28 +34,91 @@ QUANTITIES = ("radiance", "irradiance")
 
 # ---- indexing -----------------------------------------------------------------------------------------------------
 def n_coeffs(l_max: int) -> int:
-    """(l_max + 1)², the number of coefficients up to band l_max."""
+    """(l_max + 1)², the number of coefficients up to band l_max.
+
+    Parameters
+    ----------
+    l_max : int
+        The highest band (order), ≥ 0.
+
+    Returns
+    -------
+    int
+        The number of coefficients of bands 0..l_max.
+    """
     return (l_max + 1) ** 2
 
 
 def index(l: int, m: int) -> int:
-    """Flat index l(l+1) + m."""
+    """Flat index l(l+1) + m.
+
+    Parameters
+    ----------
+    l : int
+        The band, ≥ 0.
+    m : int
+        The order, −l ≤ m ≤ l (not checked).
+
+    Returns
+    -------
+    int
+        The coefficient's position in flat order: L00, L1−1, L10, L11, L2−2, …
+    """
     return l * (l + 1) + m
 
 
 def degree_order(i: int) -> tuple[int, int]:
-    """(l, m) of flat index i."""
+    """(l, m) of flat index i.
+
+    Parameters
+    ----------
+    i : int
+        A flat index l(l+1) + m, ≥ 0.
+
+    Returns
+    -------
+    tuple of (int, int)
+        The band l and order m, −l ≤ m ≤ l.
+    """
     l = int(np.floor(np.sqrt(i)))
     return l, i - l * (l + 1)
 
 
 def name(i: int) -> str:
-    """Coefficient name as in the paper: L00, L1-1, L10, …"""
+    """Coefficient name as in the paper: L00, L1-1, L10, …
+
+    Parameters
+    ----------
+    i : int
+        The coefficient's flat index, ≥ 0 (0 → L00, 1 → L1-1, …).
+
+    Returns
+    -------
+    str
+        ``L`` followed by l and m, with an ASCII minus (``L2-2``).
+    """
     l, m = degree_order(i)
     return f"L{l}{m}"
 
 
 def l_max_of(n: int) -> int:
+    """The highest band of ``n`` coefficients: l_max with (l_max + 1)² = n.
+
+    Parameters
+    ----------
+    n : int
+        A number of coefficients; it must be a square.
+
+    Returns
+    -------
+    int
+        l_max = √n − 1.
+
+    Raises
+    ------
+    UsageError
+        ``n`` is not a square.
+    """
     l = int(round(np.sqrt(n))) - 1
     if (l + 1) ** 2 != n:
         raise UsageError(f"{n} is not a number of SH coefficients (a square)")
@@ -63,7 +126,18 @@ def l_max_of(n: int) -> int:
 
 
 def band_of_each(l_max: int) -> np.ndarray:
-    """The band l of every flat index up to l_max."""
+    """The band l of every flat index up to l_max.
+
+    Parameters
+    ----------
+    l_max : int
+        The last band listed, ≥ 0.
+
+    Returns
+    -------
+    numpy.ndarray
+        ((l_max+1)²,) integers: 0, 1, 1, 1, 2, 2, 2, 2, 2, …
+    """
     return np.concatenate([np.full(2 * l + 1, l) for l in range(l_max + 1)])
 
 
@@ -72,7 +146,21 @@ def basis(l_max: int, d: np.ndarray) -> np.ndarray:
     """Y_lm(d) for all l ≤ l_max, shape d.shape[:-1] + ((l_max+1)²,); d are unit vectors in the coefficients' frame.
 
     Evaluated with the fully normalised associated-Legendre recurrences on P_l^m / sin^m θ and the exact
-    polynomials Re/Im (x + iy)^m, so there is no sqrt, no atan2 and no loss at the poles.
+    polynomials Re/Im (x + iy)^m, so there is no sqrt, no atan2 and no loss at the poles. The basis is the module's:
+    real SH without the Condon–Shortley phase, θ and φ about the frame's +z.
+
+    Parameters
+    ----------
+    l_max : int
+        The highest band, ≥ 0.
+    d : numpy.ndarray
+        (..., 3) unit vectors, in the frame the coefficients are stated in (for the world frame: +Y up, front −Z,
+        polar axis +Z); converted to float64.
+
+    Returns
+    -------
+    numpy.ndarray
+        d.shape[:-1] + ((l_max+1)²,) float64: Y_lm(d) in flat order l(l+1) + m.
     """
     d = np.asarray(d, dtype=np.float64)
     x, y, z = d[..., 0], d[..., 1], d[..., 2]
@@ -137,9 +225,26 @@ def _series(d, coeffs, a, b, pmm_step, out):  # pragma: no cover - compiled
 
 
 def series(l_max: int, d: np.ndarray, coeffs: np.ndarray) -> np.ndarray:
-    """Σ_lm coeffs[lm] Y_lm(d), shape d.shape[:-1] + coeffs.shape[1:]: ``basis(l_max, d) @ coeffs``, by a compiled
-    kernel above order 2 where that is worth loading numba for (:func:`lightprobe.util.jit.worth_compiling`; 6× faster
-    than numpy's basis matrix and product at order 12, 47k points: 21 against 132 ms), else by numpy."""
+    """Σ_lm coeffs[lm] Y_lm(d), shape d.shape[:-1] + coeffs.shape[1:]: ``basis(l_max, d) @ coeffs``.
+
+    Computed by a compiled kernel above order 2 where that is worth loading numba for
+    (:func:`lightprobe.util.jit.worth_compiling`; 6× faster than numpy's basis matrix and product at order 12, 47k
+    points: 21 against 132 ms), else by numpy. The two agree to float64 rounding, not bit for bit.
+
+    Parameters
+    ----------
+    l_max : int
+        The highest band of ``coeffs``, ≥ 0.
+    d : numpy.ndarray
+        (..., 3) unit vectors in the coefficients' frame; converted to float64.
+    coeffs : numpy.ndarray
+        ((l_max+1)², ...) coefficients in flat order, e.g. ((l_max+1)², 3) RGB; converted to float64.
+
+    Returns
+    -------
+    numpy.ndarray
+        d.shape[:-1] + coeffs.shape[1:] float64: the function's value at each direction (per channel).
+    """
     d = np.asarray(d, dtype=np.float64)
     coeffs = np.asarray(coeffs, dtype=np.float64)
     points = math.prod(d.shape[:-1])
@@ -152,7 +257,20 @@ def series(l_max: int, d: np.ndarray, coeffs: np.ndarray) -> np.ndarray:
 
 
 def normalisation(l: int, m: int) -> float:
-    """N_lm = √((2l+1)/(4π) · (l−|m|)!/(l+|m|)!) (docs/spec.md §3)."""
+    """N_lm = √((2l+1)/(4π) · (l−|m|)!/(l+|m|)!) (docs/spec.md §3).
+
+    Parameters
+    ----------
+    l : int
+        The band, ≥ 0.
+    m : int
+        The order, |m| ≤ l; only |m| matters.
+
+    Returns
+    -------
+    float
+        N_lm (without the √2 of the m ≠ 0 functions).
+    """
     m = abs(m)
     return sqrt((2 * l + 1) / (4 * pi) * factorial(l - m) / factorial(l + m))
 
@@ -163,7 +281,23 @@ def a_hat(l: int) -> float:
     For even l ≥ 2, Â_l = 2π (−1)^(l/2−1) / ((l+2)(l−1)) · l! / (2^l (l/2)!²), and l! / (l/2)!² = C(l, l/2). The
     binomial and 2^l are formed as exact Python integers and divided once (correctly rounded), so the value is
     right at any order; numpy's int64 (the old ``2**l`` on a numpy integer) overflows from l = 63 and silently
-    gave Â_24 = 1522.9 instead of −0.0017 through the float factorials."""
+    gave Â_24 = 1522.9 instead of −0.0017 through the float factorials.
+
+    Parameters
+    ----------
+    l : int
+        The band, ≥ 0 (a numpy integer is converted to a Python one).
+
+    Returns
+    -------
+    float
+        Â_l: E_lm = Â_l L_lm gives irradiance (not divided by π); 0 for odd l ≥ 3.
+
+    Raises
+    ------
+    UsageError
+        ``l`` is negative.
+    """
     l = int(l)
     if l < 0:
         raise UsageError(f"Â_l needs l ≥ 0, got {l}")
@@ -178,6 +312,18 @@ def a_hat(l: int) -> float:
 
 
 def a_hat_per_coefficient(l_max: int) -> np.ndarray:
+    """Â_l of every flat index up to l_max: what multiplies each radiance coefficient to give irradiance.
+
+    Parameters
+    ----------
+    l_max : int
+        The last band whose Â_l is given, ≥ 0.
+
+    Returns
+    -------
+    numpy.ndarray
+        ((l_max+1)²,) float64: Â_l of each coefficient's band (:func:`a_hat`), in flat order.
+    """
     return np.array([a_hat(l) for l in band_of_each(l_max)])
 
 
@@ -192,13 +338,29 @@ def _sample_directions(n: int) -> np.ndarray:
 
 
 def transform_matrix(l_max: int, q: np.ndarray) -> np.ndarray:
-    """Matrix T with b = T a, where a are the coefficients of f and b those of f'(d) = f(Qᵀ d), for any orthogonal
-    Q (a rotation, or a mirror such as the world → rh2001 frame change). Block-diagonal by band.
+    """Matrix T with b = T a, where a are the coefficients of f and b those of f'(d) = f(Qᵀ d), for orthogonal Q.
+
+    Q may be any orthogonal matrix: a rotation, or a mirror such as the world → rh2001 frame change. T is
+    block-diagonal by band.
 
     Each band block is solved exactly from Y_l(Qᵀ d) = D_l Y_l(d) at well-spread directions: band l is closed under
     O(3), so the system is consistent and least squares returns the exact matrix (to ~1e-13); this is the
-    "equivalent exact method" docs/spec.md §1 allows in place of the Ivanic–Ruedenberg recurrence, and it needs no sign
-    bookkeeping for mirrors.
+    "equivalent exact method" docs/spec.md §1 allows in place of the Ivanic–Ruedenberg recurrence, and it needs no
+    sign bookkeeping for mirrors.
+
+    Parameters
+    ----------
+    l_max : int
+        The highest band, ≥ 0.
+    q : numpy.ndarray
+        (3, 3) orthogonal matrix (not checked), acting on column vectors of the frame the coefficients are stated
+        in; converted to float64.
+
+    Returns
+    -------
+    numpy.ndarray
+        ((l_max+1)², (l_max+1)²) float64, read-only: the matrix is cached and shared by later calls with the same
+        ``l_max`` and ``q``.
     """
     q = np.asarray(q, dtype=np.float64)
     return _transform_matrix(l_max, q.tobytes())
@@ -224,6 +386,26 @@ def window_weights(kind: str, l_max: int, width: float | None = None) -> np.ndar
     """Per-band weights w_l (l = 0..l_max) of a de-ringing window of ``width`` (default l_max + 1).
 
     ``hanning``: w_l = (1 + cos(πl/W))/2; ``lanczos``: w_l = sinc(l/W); both 0 for l ≥ W. ``none``: 1.
+
+    Parameters
+    ----------
+    kind : str
+        ``none``, ``hanning`` or ``lanczos``. (``auto`` is a search, not a fixed window: :meth:`SHCoeffs.windowed`
+        handles it through :func:`auto_window`; here it is refused.)
+    l_max : int
+        The highest band, ≥ 0.
+    width : float, optional
+        The window's width W in bands (default l_max + 1); ignored by ``none``.
+
+    Returns
+    -------
+    numpy.ndarray
+        (l_max + 1,) float64: w_l for each band (index it with :func:`band_of_each` for one weight a coefficient).
+
+    Raises
+    ------
+    UsageError
+        ``kind`` is not one of the windows above.
     """
     l = np.arange(l_max + 1, dtype=np.float64)
     w = float(width if width is not None else l_max + 1)
@@ -265,41 +447,129 @@ class SHCoeffs:
 
     @property
     def l_max(self) -> int:
+        """The highest band l of the coefficients (there are (l_max+1)² of them)."""
         return l_max_of(self.coeffs.shape[0])
 
     def __getitem__(self, lm: tuple[int, int]) -> np.ndarray:
         return self.coeffs[index(*lm)]
 
     def evaluate(self, d_world: np.ndarray) -> np.ndarray:
-        """The function at world directions (..., 3): radiance for ``radiance``, E(n) for ``irradiance``."""
+        """The function at world directions (..., 3): radiance for ``radiance``, E(n) for ``irradiance``.
+
+        Parameters
+        ----------
+        d_world : numpy.ndarray
+            (..., 3) unit vectors in the world frame (+Y up, front −Z), whatever :attr:`frame` the coefficients
+            are stated in: directions for radiance, surface normals for irradiance.
+
+        Returns
+        -------
+        numpy.ndarray
+            (..., 3) float64 (one value per channel of :attr:`coeffs`): radiance L(d), or irradiance E(n) not
+            divided by π.
+        """
         d = self.frame.from_world(np.asarray(d_world, dtype=np.float64))
         return series(self.l_max, d, self.coeffs)
 
     def to_irradiance(self) -> SHCoeffs:
-        """E_lm = Â_l L_lm (paper eq. 7). Refuses coefficients that already are irradiance."""
+        """E_lm = Â_l L_lm (paper eq. 7). Refuses coefficients that already are irradiance.
+
+        Returns
+        -------
+        SHCoeffs
+            Irradiance coefficients (E not divided by π) in the same frame, order and window.
+
+        Raises
+        ------
+        UsageError
+            The coefficients already are irradiance (convolving twice is an error).
+        """
         if self.quantity != "radiance":
             raise UsageError(f"these coefficients are already {self.quantity}; convolving twice is an error")
         return replace(self, coeffs=self.coeffs * a_hat_per_coefficient(self.l_max)[:, None], quantity="irradiance")
 
     def to_frame(self, target: str | Frame) -> SHCoeffs:
-        """The same function stated in another frame (docs/spec.md §1: world → rh2001 negates L10, L2−1, L21, …)."""
+        """The same function stated in another frame (docs/spec.md §1: world → rh2001 negates L10, L2−1, L21, …).
+
+        Frames with the same axes (world and three.js-axes, say) only change the label: exact, with no
+        least-squares round-off; any other change goes through :func:`transform_matrix`.
+
+        Parameters
+        ----------
+        target : str or Frame
+            A frame name of :data:`lightprobe.maps.frames.FRAMES` (``world``, ``rh2001``, ``threejs``, …) or a
+            :class:`~lightprobe.maps.frames.Frame`.
+
+        Returns
+        -------
+        SHCoeffs
+            The coefficients stated in ``target``; quantity and window unchanged.
+
+        Raises
+        ------
+        UsageError
+            ``target`` is not a known frame name.
+        """
         target = frame_named(target)
         q = target.to_frame @ self.frame.to_frame.T  # this frame → target frame
-        if np.array_equal(q, np.eye(3)):  # the same axes (world and three.js, say): exact, no least-squares round-off
+        if np.array_equal(q, np.eye(3)):  # the same axes (world and Filament, say): exact, no least-squares round-off
             return replace(self, frame=target)
         return replace(self, coeffs=transform_matrix(self.l_max, q) @ self.coeffs, frame=target)
 
     def rotated(self, rotation: np.ndarray) -> SHCoeffs:
-        """The lighting turned by a world rotation R (light from d moves to R·d), exactly, in the same frame."""
+        """The lighting turned by a world rotation R (light from d moves to R·d), exactly, in the same frame.
+
+        Parameters
+        ----------
+        rotation : numpy.ndarray
+            (3, 3) rotation matrix R acting on world-frame column vectors (+Y up, front −Z), e.g. from
+            :func:`lightprobe.maps.frames.rotation_from_ypr` (yaw, pitch, roll in degrees). It is not checked here.
+
+        Returns
+        -------
+        SHCoeffs
+            The turned lighting, stated in the same frame, with the same quantity and window.
+        """
         r = np.asarray(rotation, dtype=np.float64)
         q = self.frame.to_frame @ r @ self.frame.to_frame.T  # R expressed in this frame
         return replace(self, coeffs=transform_matrix(self.l_max, q) @ self.coeffs)
 
     def truncated(self, l_max: int) -> SHCoeffs:
+        """The coefficients of bands ≤ ``l_max`` only.
+
+        Parameters
+        ----------
+        l_max : int
+            The highest band to keep, ≥ 0; at or above the coefficients' own order, they are returned whole.
+
+        Returns
+        -------
+        SHCoeffs
+            The first (l_max+1)² coefficients, same frame, quantity and window.
+        """
         return replace(self, coeffs=self.coeffs[: n_coeffs(l_max)])
 
     def windowed(self, kind: str, width: float | None = None) -> SHCoeffs:
-        """Coefficients times a de-ringing window (see :func:`window_weights`; ``auto``: :func:`auto_window`)."""
+        """Coefficients times a de-ringing window (see :func:`window_weights`; ``auto``: :func:`auto_window`).
+
+        Parameters
+        ----------
+        kind : str
+            ``none``, ``hanning``, ``lanczos`` or ``auto`` (:data:`lightprobe.util.names.WINDOWS`).
+        width : float, optional
+            The window's width W in bands (default l_max + 1); ignored by ``none`` and ``auto``.
+
+        Returns
+        -------
+        SHCoeffs
+            The windowed coefficients (same frame and quantity) whose ``window`` names what was applied: ``none``,
+            e.g. ``lanczos(3.7)``, or for ``auto`` the label :func:`auto_window` gives.
+
+        Raises
+        ------
+        UsageError
+            ``kind`` is not a known window, or ``auto`` is asked of irradiance coefficients.
+        """
         if kind == "auto":
             return auto_window(self)
         w = window_weights(kind, self.l_max, width)[band_of_each(self.l_max)]
@@ -307,18 +577,61 @@ class SHCoeffs:
         return replace(self, coeffs=self.coeffs * w[:, None], window=label)
 
     def scaled_band(self, l: int, factor: float) -> SHCoeffs:
-        """Lighting design: multiply band l by ``factor``."""
+        """Lighting design: multiply band l by ``factor``.
+
+        Parameters
+        ----------
+        l : int
+            The band, 0 ≤ l ≤ :attr:`l_max` (a band above it changes nothing).
+        factor : float
+            The factor, applied to every coefficient of the band and every channel.
+
+        Returns
+        -------
+        SHCoeffs
+            Band l times ``factor``, the other bands as they were; frame, quantity and window kept.
+
+        Raises
+        ------
+        UsageError
+            ``factor`` is NaN or makes a coefficient infinite.
+        """
         c = self.coeffs.copy()
         c[l * l : (l + 1) ** 2] *= factor
         return replace(self, coeffs=c)
 
     def with_coefficient(self, lm: tuple[int, int], rgb) -> SHCoeffs:
-        """Lighting design: set one coefficient (all channels to one value, or an RGB triple)."""
+        """Lighting design: set one coefficient (all channels to one value, or an RGB triple).
+
+        Parameters
+        ----------
+        lm : tuple of (int, int)
+            The coefficient's (l, m), |m| ≤ l ≤ :attr:`l_max`.
+        rgb : float or sequence of 3 floats
+            The new value, in the coefficients' quantity and frame: one number for every channel, or R, G, B.
+
+        Returns
+        -------
+        SHCoeffs
+            A copy with L_lm replaced by ``rgb`` (every other coefficient, the frame, quantity and window kept).
+
+        Raises
+        ------
+        UsageError
+            ``rgb`` holds NaN or an infinity.
+        """
         c = self.coeffs.copy()
         c[index(*lm)] = np.broadcast_to(np.asarray(rgb, dtype=np.float64), (3,))
         return replace(self, coeffs=c)
 
     def as_list(self) -> list[list[float]]:
+        """The coefficients as plain Python floats, for JSON.
+
+        Returns
+        -------
+        list of list of float
+            One row per coefficient in flat order, one value per channel ([R, G, B]).
+        """
         return [[float(v) for v in row] for row in self.coeffs]
 
 
@@ -328,7 +641,27 @@ def auto_window(sh: SHCoeffs, samples: int = 16384) -> SHCoeffs:
     Like Filament cmgen's ``--sh-window auto``: ringing around a bright sun makes the irradiance on the far side
     negative; a window that just removes the negative lobes keeps as much detail as possible. The minimum over
     ``samples`` well-spread normals is not monotone in the width W, so W is scanned from wide to narrow (steps of
-    3 %) and the first width that works is refined by bisection against the last one that failed."""
+    3 %) and the first width that works is refined by bisection against the last one that failed.
+
+    Parameters
+    ----------
+    sh : SHCoeffs
+        Radiance coefficients, any order and frame.
+    samples : int, default 16384
+        How many well-spread normals (a Fibonacci lattice) the irradiance is checked at.
+
+    Returns
+    -------
+    SHCoeffs
+        Radiance coefficients with the widest working Lanczos window applied, labelled ``auto:lanczos(W)``; or
+        the coefficients unchanged, labelled ``auto(none needed)``, when the irradiance is non-negative without a
+        window.
+
+    Raises
+    ------
+    UsageError
+        ``sh`` holds irradiance, not radiance, coefficients.
+    """
     if sh.quantity != "radiance":
         raise UsageError("the auto window needs radiance coefficients")
     y = basis(sh.l_max, sh.frame.from_world(_sample_directions(samples)))  # evaluated once for the whole search
@@ -624,8 +957,34 @@ def project(env: EnvMap, l_max: int = 2, frame: str | Frame = WORLD, fast: bool 
     Lat-long maps are separable: per-row azimuthal sums, then per-row Legendre weights (one pass over the pixels,
     O(S·l_max) work). The row sums come from compiled kernels (above order 2 they need W divisible by 4) or, with
     ``compiled`` False, from numpy matrix products; ``compiled`` None takes the kernels when numba is already
-    loaded or the map is big enough to repay loading it (:func:`lightprobe.util.jit.worth_compiling`). Every other map
-    evaluates the basis at its pixel directions. All compute the same sum (to float64 rounding).
+    loaded or the map is big enough to repay loading it (:func:`lightprobe.util.jit.worth_compiling`). Every other
+    map evaluates the basis at its pixel directions. All compute the same sum (to float64 rounding).
+
+    Parameters
+    ----------
+    env : EnvMap
+        The environment: linear RGB radiance in any layout (directions in the world frame).
+    l_max : int, default 2
+        The highest band, a whole number ≥ 0 (2: the paper's nine coefficients).
+    frame : str or Frame, default WORLD
+        The frame to state the coefficients in: a name of :data:`lightprobe.maps.frames.FRAMES` or a
+        :class:`~lightprobe.maps.frames.Frame`.
+    fast : bool, default True
+        Take the separable lat-long path for a lat-long map (when its kernels can: always with ``compiled`` False
+        or l_max ≤ 2, else when W is divisible by 4); False always evaluates the basis per pixel.
+    compiled : bool, optional
+        For the lat-long row sums: True or False forces the compiled kernels or numpy's matrix products; None
+        (default) decides by the work, as above. The per-pixel path always runs a compiled kernel.
+
+    Returns
+    -------
+    SHCoeffs
+        Radiance coefficients L_lm ((l_max+1)², 3) in ``frame``, no window.
+
+    Raises
+    ------
+    UsageError
+        ``l_max`` is not a whole number ≥ 0, or ``frame`` is not a known frame name.
     """
     if not isinstance(l_max, (int, np.integer)) or l_max < 0:
         raise UsageError(f"the SH order l_max must be a whole number ≥ 0, got {l_max!r}")
@@ -639,7 +998,23 @@ def project(env: EnvMap, l_max: int = 2, frame: str | Frame = WORLD, fast: bool 
 
 
 def delta_light(direction, power_rgb, l_max: int = 2) -> SHCoeffs:
-    """Radiance coefficients of a distant point light: L_lm = Φ Y_lm(s) (world frame), for analytic checks."""
+    """Radiance coefficients of a distant point light: L_lm = Φ Y_lm(s) (world frame), for analytic checks.
+
+    Parameters
+    ----------
+    direction : array_like
+        (3,) the direction s the light comes from, world frame (+Y up, front −Z); any non-zero length (it is
+        normalised).
+    power_rgb : array_like
+        (3,) the light's RGB power Φ (radiance × sr, ∫L dω).
+    l_max : int, default 2
+        The highest band, ≥ 0.
+
+    Returns
+    -------
+    SHCoeffs
+        Radiance coefficients ((l_max+1)², 3) in the world frame, no window.
+    """
     s = np.asarray(direction, dtype=np.float64)
     s = s / np.linalg.norm(s)
     return SHCoeffs(basis(l_max, s)[:, None] * np.asarray(power_rgb, dtype=np.float64)[None, :])

@@ -32,7 +32,22 @@ def brute_irradiance(env: EnvMap, normals: np.ndarray, chunk: int = 4096) -> np.
     """E(n) = Σ_pixels L(d_p) max(n·d_p, 0) Δω_p for every normal (..., 3): the reference, O(T·S).
 
     A compiled kernel sums all pixels with light for each normal (float32 products, float64 totals: ~1e-7
-    relative); normals go in chunks so long runs show progress."""
+    relative); normals go in chunks so long runs show progress.
+
+    Parameters
+    ----------
+    env : EnvMap
+        The environment: linear RGB radiance, any layout, with its exact per-pixel solid angles.
+    normals : numpy.ndarray
+        (..., 3) world-frame unit normals (+Y up, front −Z).
+    chunk : int, default 4096
+        Normals per call of the kernel (one progress step each).
+
+    Returns
+    -------
+    numpy.ndarray
+        (..., 3) float64: irradiance E at each normal, RGB, not divided by π.
+    """
     from ..maps.lookups import clamped_cosine_sums  # numba loads with the first kernel, not with the package
 
     normals = np.asarray(normals, dtype=np.float64)
@@ -57,7 +72,23 @@ def _light_samples(env: EnvMap) -> tuple[np.ndarray, np.ndarray]:
 def irradiance_matrices(sh: SHCoeffs) -> np.ndarray:
     """The 3×4×4 matrices M of eq. 12 (one per colour channel) with E(n) = (n, 1)ᵀ M (n, 1), n in ``sh.frame``.
 
-    Needs radiance coefficients with l_max ≥ 2 (only bands ≤ 2 enter)."""
+    Needs radiance coefficients with l_max ≥ 2 (only bands ≤ 2 enter).
+
+    Parameters
+    ----------
+    sh : SHCoeffs
+        Radiance coefficients L_lm, l_max ≥ 2, in any frame; the matrices act on normals of that frame.
+
+    Returns
+    -------
+    numpy.ndarray
+        (3, 4, 4) float64: M for R, G and B; the quadratic form gives irradiance E (not divided by π).
+
+    Raises
+    ------
+    UsageError
+        The coefficients are irradiance, or their order is below 2.
+    """
     if sh.quantity != "radiance" or sh.l_max < 2:
         raise UsageError("the matrix form needs radiance coefficients up to band 2 at least")
     L = sh.coeffs  # noqa: N806 - the paper's notation
@@ -76,14 +107,43 @@ def irradiance_matrices(sh: SHCoeffs) -> np.ndarray:
 
 
 def irradiance_quadratic(m: np.ndarray, normals: np.ndarray) -> np.ndarray:
-    """E(n) = (n, 1)ᵀ M (n, 1) per channel, normals (..., 3) in the matrices' frame; returns (..., 3)."""
+    """E(n) = (n, 1)ᵀ M (n, 1) per channel, normals (..., 3) in the matrices' frame; returns (..., 3).
+
+    Parameters
+    ----------
+    m : numpy.ndarray
+        (3, 4, 4) matrices of :func:`irradiance_matrices`, one per channel.
+    normals : numpy.ndarray
+        (..., 3) unit normals in the frame the matrices were made in (``sh.frame``).
+
+    Returns
+    -------
+    numpy.ndarray
+        (..., 3): irradiance E at each normal, RGB, not divided by π.
+    """
     n4 = np.concatenate([normals, np.ones(np.shape(normals)[:-1] + (1,))], axis=-1)
     return np.einsum("...i,cij,...j->...c", n4, m, n4)
 
 
 def irradiance_polynomial(sh: SHCoeffs, normals: np.ndarray) -> np.ndarray:
-    """Eq. 13 as a shader writes it: c1 L22 (x²−y²) + c3 L20 z² + c4 L00 − c5 L20 + 2c1 (L2−2 xy + L21 xz + L2−1 yz)
-    + 2c2 (L11 x + L1−1 y + L10 z), normals in ``sh.frame``; returns (..., 3)."""
+    """Eq. 13 as a shader writes it, normals in ``sh.frame``; returns (..., 3).
+
+    E(n) = c1 L22 (x²−y²) + c3 L20 z² + c4 L00 − c5 L20 + 2c1 (L2−2 xy + L21 xz + L2−1 yz)
+    + 2c2 (L11 x + L1−1 y + L10 z), with the constants :data:`C1` … :data:`C5` of eq. 12.
+
+    Parameters
+    ----------
+    sh : SHCoeffs
+        Radiance coefficients L_lm with l_max ≥ 2; only the first nine are used (neither the quantity nor the
+        order is checked here).
+    normals : numpy.ndarray
+        (..., 3) unit normals (x, y, z) in ``sh.frame``.
+
+    Returns
+    -------
+    numpy.ndarray
+        (..., 3): irradiance E at each normal, RGB, not divided by π.
+    """
     L = sh.coeffs  # noqa: N806
     x, y, z = (np.asarray(normals)[..., k, None] for k in range(3))
     return (C1 * L[8] * (x * x - y * y) + C3 * L[6] * z * z + C4 * L[0] - C5 * L[6]
@@ -101,14 +161,55 @@ class IrradianceMap:
     method: str
 
     def to_envmap_image(self) -> EnvMap:
-        """The same pixels as an :class:`EnvMap` container, for writing files (values are irradiance)."""
+        """The same pixels as an :class:`EnvMap` container, for writing files (values are irradiance).
+
+        Returns
+        -------
+        EnvMap
+            The map's data (irradiance E, not divided by π, per texel normal) in its layout.
+        """
         return EnvMap(self.data, self.layout)
 
 
 def irradiance_map(env: EnvMap, target: str | Layout, size: int, method: str = "sh", l_max: int = 2,
                    window: str = "none", sh: SHCoeffs | None = None) -> IrradianceMap:
-    """An irradiance map of ``env`` in layout ``target`` of ``size``: ``sh`` (order l_max, optional window) or
-    ``brute`` (the exact integral per texel)."""
+    """An irradiance map of ``env`` in layout ``target`` of ``size``, by SH or by brute force.
+
+    ``sh`` (order l_max, optional window) or ``brute`` (the exact integral per texel).
+
+    Parameters
+    ----------
+    env : EnvMap
+        The environment: linear RGB radiance, any layout.
+    target : str or Layout
+        The output layout: a name of :data:`lightprobe.maps.layouts.LAYOUTS` (``latlong``, ``cube``, …) or a
+        :class:`~lightprobe.maps.layouts.Layout`.
+    size : int
+        The output size, ≥ 1, as layouts define it: the height for ``latlong``, ``angular`` and ``sphere``, the
+        face edge for ``cube``, ``cross`` and ``hcross``.
+    method : str, default "sh"
+        ``sh``: evaluate SH irradiance; ``brute``: the exact sum over ``env``'s pixels per texel (slow).
+    l_max : int, default 2
+        The SH order with ``sh`` when the coefficients are projected here (ignored when ``sh`` is given, and by
+        ``brute``).
+    window : str, default "none"
+        The de-ringing window with ``sh`` (``none``, ``hanning``, ``lanczos``, ``auto``; at its default width).
+    sh : SHCoeffs, optional
+        Radiance coefficients of ``env``, to reuse a projection; they are windowed and convolved here.
+
+    Returns
+    -------
+    IrradianceMap
+        float32 irradiance E (not divided by π) per texel, the texel's direction taken as the world-frame normal;
+        texels outside the layout's valid area are 0.
+
+    Raises
+    ------
+    UsageError
+        ``method`` is neither ``sh`` nor ``brute``, ``window`` is unknown, or ``sh`` holds irradiance.
+    LayoutError
+        ``target`` is not a known layout, or ``size`` is below 1.
+    """
     if method == "sh":
         coeffs = (sh or project(env, l_max)).windowed(window).to_irradiance()
         return irradiance_map_of(coeffs.evaluate, target, size, method)
@@ -118,8 +219,35 @@ def irradiance_map(env: EnvMap, target: str | Layout, size: int, method: str = "
 
 
 def irradiance_map_of(irradiance, target: str | Layout, size: int, method: str) -> IrradianceMap:
-    """The map of ``irradiance(normals)`` (E at world-frame unit normals (..., 3)) over every texel direction of
-    layout ``target`` of ``size``; texels outside the layout's valid area are 0."""
+    """The map of ``irradiance(normals)`` over every texel direction of layout ``target`` of ``size``.
+
+    ``irradiance(normals)`` gives E at world-frame unit normals (..., 3); texels outside the layout's valid area
+    are 0.
+
+    Parameters
+    ----------
+    irradiance : callable
+        Maps (..., 3) world-frame unit normals to (..., 3) RGB irradiance E (not divided by π), e.g.
+        :meth:`~lightprobe.sh.basis.SHCoeffs.evaluate` of irradiance coefficients. It is called once, with the
+        directions of every texel of the grid.
+    target : str or Layout
+        The output layout: a name of :data:`lightprobe.maps.layouts.LAYOUTS` or a
+        :class:`~lightprobe.maps.layouts.Layout`.
+    size : int
+        The output size, ≥ 1, as the layout defines it (the height of a lat-long, the face edge of a cube).
+    method : str
+        The label the map carries (``sh``, ``brute``, ``hybrid``).
+
+    Returns
+    -------
+    IrradianceMap
+        The values as float32, 0 outside the layout's valid area.
+
+    Raises
+    ------
+    LayoutError
+        ``target`` is not a known layout, or ``size`` is below 1.
+    """
     lay = layout_named(target)
     grid = lay.grid_shape(size)
     values = irradiance(lay.directions(grid))
@@ -129,9 +257,10 @@ def irradiance_map_of(irradiance, target: str | Layout, size: int, method: str) 
 # ---- error analysis -------------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class ErrorReport:
-    """An irradiance method against brute force on luminance, over normals spread uniformly on the sphere (docs/spec.md §3):
-    SH of order ``l_max`` with ``window`` (method ``sh``), or the hybrid of :mod:`lightprobe.lights.hybrid` (lights exact,
-    ambient SH of order ``l_max``)."""
+    """An irradiance method against brute force on luminance, over normals spread uniformly on the sphere.
+
+    The error measures of docs/spec.md §3: SH of order ``l_max`` with ``window`` (method ``sh``), or the hybrid of
+    :mod:`lightprobe.lights.hybrid` (lights exact, ambient SH of order ``l_max``)."""
 
     l_max: int
     window: str
@@ -144,7 +273,19 @@ class ErrorReport:
 
 
 def reference_normals(count: int = 2000) -> np.ndarray:
-    """``count`` normals spread uniformly over the sphere (Fibonacci lattice)."""
+    """``count`` normals spread uniformly over the sphere (Fibonacci lattice).
+
+    Parameters
+    ----------
+    count : int, default 2000
+        How many normals.
+
+    Returns
+    -------
+    numpy.ndarray
+        (count, 3) float64 unit vectors, the same for the same ``count`` (deterministic); usable as world-frame
+        normals.
+    """
     return _sample_directions(count)
 
 
@@ -153,7 +294,34 @@ def error_report(env: EnvMap, l_max: int = 2, window: str = "none", normals: np.
     """Both error measures of SH irradiance (order ``l_max``, ``window``) against the brute-force reference.
 
     ``reference`` (brute-force E at ``normals``) and ``sh`` (coefficients of order ≥ l_max) may be passed in to
-    share work between several reports."""
+    share work between several reports.
+
+    Parameters
+    ----------
+    env : EnvMap
+        The environment: linear RGB radiance, any layout.
+    l_max : int, default 2
+        The SH order evaluated (higher bands of ``sh`` are cut off).
+    window : str, default "none"
+        The de-ringing window (``none``, ``hanning``, ``lanczos``, ``auto``; at its default width).
+    normals : numpy.ndarray, optional
+        (N, 3) world-frame unit normals to compare at; default :func:`reference_normals` (2000).
+    reference : numpy.ndarray, optional
+        (N, 3) brute-force irradiance E (not divided by π) at ``normals``; default computed here by
+        :func:`brute_irradiance`.
+    sh : SHCoeffs, optional
+        Radiance coefficients of ``env`` of order ≥ ``l_max``; default projected here.
+
+    Returns
+    -------
+    ErrorReport
+        Method ``sh``, with ``l_max`` and the window's label.
+
+    Raises
+    ------
+    UsageError
+        ``window`` is unknown, or ``sh`` holds irradiance.
+    """
     normals = reference_normals() if normals is None else normals
     reference = brute_irradiance(env, normals) if reference is None else reference
     coeffs = (sh or project(env, l_max)).truncated(l_max).windowed(window)
@@ -162,8 +330,32 @@ def error_report(env: EnvMap, l_max: int = 2, window: str = "none", normals: np.
 
 def compare_irradiance(env: EnvMap, irradiance: np.ndarray, reference: np.ndarray, l_max: int, window: str = "none",
                        method: str = "sh") -> ErrorReport:
-    """The error measures of any method's RGB irradiance at the normals where ``reference`` (brute force, RGB) was
-    taken."""
+    """The error measures of any method's RGB irradiance at the normals where ``reference`` (brute force) was taken.
+
+    On luminance Y: ``paper_*`` are |E − E_ref| over ∫Y dω of ``env`` (the share of the total intensity),
+    ``relative_*`` are |E − E_ref| / E_ref per normal (E_ref at least 1e-12 of that total), ``negative_fraction``
+    the share of normals where any channel of ``irradiance`` is negative.
+
+    Parameters
+    ----------
+    env : EnvMap
+        The environment both were computed from; only its integral ∫L dω is used.
+    irradiance : numpy.ndarray
+        (N, 3) the method's RGB irradiance E (not divided by π) at the normals.
+    reference : numpy.ndarray
+        (N, 3) brute-force RGB irradiance E at the same normals.
+    l_max : int
+        The SH order to record in the report (the ambient's, for the hybrid).
+    window : str, default "none"
+        The window label to record.
+    method : str, default "sh"
+        The method label to record (``sh``, ``hybrid``).
+
+    Returns
+    -------
+    ErrorReport
+        Mean and maximum of both measures, and the negative fraction.
+    """
     e, e_ref = luminance(irradiance), luminance(reference)
     total = float(luminance(env.integral()))
     diff = np.abs(e - e_ref)

@@ -30,7 +30,22 @@ MAX_BYTES = 4 << 20
 
 
 def sh_document(sh: SHCoeffs, frame: Frame = WORLD, source: str | None = None) -> dict:
-    """The schema's object for ``sh`` stated in ``frame``."""
+    """The schema's object for ``sh`` stated in ``frame``.
+
+    Parameters
+    ----------
+    sh : SHCoeffs
+        Coefficients of either quantity, any order, any frame.
+    frame : Frame, default WORLD
+        The frame to state them in (a frame name is accepted too); the file names it.
+    source : str, optional
+        The map the coefficients came from; null in the file when None.
+
+    Returns
+    -------
+    dict
+        The ``lightprobe.sh`` version 2 object (see the module docstring), ready for ``json.dumps``.
+    """
     out = sh.to_frame(frame)
     return {"format": FORMAT, "version": VERSION, "quantity": out.quantity, "frame": out.frame.name,
             "frame_description": out.frame.description, "basis": BASIS, "window": out.window, "l_max": out.l_max,
@@ -39,13 +54,57 @@ def sh_document(sh: SHCoeffs, frame: Frame = WORLD, source: str | None = None) -
 
 
 def sh_json(sh: SHCoeffs, frame: Frame = WORLD, source: str | None = None) -> str:
+    """The schema's JSON text for ``sh`` stated in ``frame`` (:func:`sh_document`, indented, ending in a newline).
+
+    Parameters
+    ----------
+    sh : SHCoeffs
+        What to write, as for :func:`sh_document`.
+    frame : Frame, default WORLD
+        The frame the file states them in.
+    source : str, optional
+        The map projected, as the user named it, or None.
+
+    Returns
+    -------
+    str
+        ``lightprobe.sh`` text that :func:`read_sh_json` reads back; NaN and infinity are refused by ``json.dumps``
+        (SHCoeffs never hold them).
+    """
     return json.dumps(sh_document(sh, frame, source), indent=1, allow_nan=False) + "\n"
 
 
 def versioned_document(text: str | bytes, what: str, fmt: str, version: int, max_bytes: int):
-    """The JSON object of a ``{"format": fmt, "version": version, …}`` document and a ``fail(reason)`` that raises
-    the one-line :class:`~lightprobe.util.errors.InputError` "cannot read <what>: <reason>" (shared by lightprobe's
-    readers)."""
+    """The JSON object of a ``{"format": fmt, "version": version, …}`` document and a ``fail(reason)`` to refuse it.
+
+    ``fail(reason)`` raises the one-line :class:`~lightprobe.util.errors.InputError` "cannot read <what>: <reason>"
+    (shared by lightprobe's readers).
+
+    Parameters
+    ----------
+    text : str or bytes
+        The document's text (bytes are decoded as JSON text by :func:`json.loads`).
+    what : str
+        What is read, for messages (e.g. ``"SH file"`` or a file name).
+    fmt : str
+        The required ``format`` field (``lightprobe.sh``, ``lightprobe.lights``, …).
+    version : int
+        The required ``version`` field.
+    max_bytes : int
+        The longest text accepted, in characters for a str and bytes for bytes.
+
+    Returns
+    -------
+    doc : dict
+        The parsed object, with ``format`` and ``version`` checked and nothing else.
+    fail : callable taking a str
+        Raises the one-line :class:`~lightprobe.util.errors.InputError` for a reason; it never returns.
+
+    Raises
+    ------
+    InputError
+        The text is over ``max_bytes``, is not JSON, is not an object of format ``fmt``, or has another version.
+    """
     def fail(reason: str):
         raise InputError(f"cannot read {what}: {reason}")
 
@@ -64,7 +123,28 @@ def versioned_document(text: str | bytes, what: str, fmt: str, version: int, max
 
 
 def read_sh_json(text: str | bytes, what: str = "SH file") -> SHCoeffs:
-    """Coefficients from the schema's JSON text; every field is checked."""
+    """Coefficients from the schema's JSON text; every field is checked.
+
+    Parameters
+    ----------
+    text : str or bytes
+        A ``lightprobe.sh`` version 2 document, at most :data:`MAX_BYTES` (4 MiB).
+    what : str, default "SH file"
+        What is read, for messages (e.g. the file's name).
+
+    Returns
+    -------
+    SHCoeffs
+        The coefficients with the file's quantity, frame (they are not converted to the world frame) and window
+        (``none`` when the field is missing).
+
+    Raises
+    ------
+    InputError
+        The text is not such a document, or a field is missing or wrong: quantity, frame (a name of
+        :data:`lightprobe.maps.frames.FRAMES`), window (a text of at most 64 characters), l_max (0 to
+        :data:`MAX_ORDER`), or coefficients ((l_max+1)² rows of three finite numbers).
+    """
     doc, fail = versioned_document(text, what, FORMAT, VERSION, MAX_BYTES)
     quantity, frame, window, l_max = doc.get("quantity"), doc.get("frame"), doc.get("window", "none"), doc.get("l_max")
     if quantity not in QUANTITIES:

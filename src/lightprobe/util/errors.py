@@ -34,7 +34,22 @@ class LightprobeWarning(UserWarning):
 
 
 def short(value, limit: int = 60) -> str:
-    """``repr(value)`` cut to ``limit`` characters, so that no message ever echoes a whole (possibly huge) value."""
+    """``repr(value)`` cut to ``limit`` characters, so that no message ever echoes a whole (possibly huge) value.
+
+    Parameters
+    ----------
+    value : object
+        Any value to name in a message; a string is cut to ``limit + 1`` characters before its ``repr`` is taken,
+        so a huge string is never copied whole.
+    limit : int, default 60
+        The most characters of the result.
+
+    Returns
+    -------
+    str
+        ``repr(value)`` on one line (newlines become spaces); when longer than ``limit``, its first ``limit − 1``
+        characters followed by ``…``.
+    """
     text = repr(value) if not isinstance(value, str) else repr(value[: limit + 1])
     text = text.replace("\n", " ")
     return text if len(text) <= limit else text[: limit - 1] + "…"

@@ -50,12 +50,35 @@ def raise_on_termination() -> None:
 
 
 def temp_path_for(path: Path) -> Path:
-    """A fresh temporary name beside ``path`` that keeps its extension (image libraries pick formats by it)."""
+    """A fresh temporary name beside ``path`` that keeps its extension (image libraries pick formats by it).
+
+    Parameters
+    ----------
+    path : Path
+        The target file.
+
+    Returns
+    -------
+    Path
+        ``.NAME.lpPID-RANDOM.tmpEXT`` in the target's folder: NAME the target's name, PID this process's id,
+        RANDOM 8 hex digits, EXT the target's extension. Nothing is created.
+    """
     return path.with_name(f".{path.name}.lp{os.getpid()}-{secrets.token_hex(4)}.tmp{path.suffix}")
 
 
 def process_alive(pid: int) -> bool:
-    """True when process ``pid`` exists (ours or another user's)."""
+    """True when process ``pid`` exists (ours or another user's).
+
+    Parameters
+    ----------
+    pid : int
+        A process id.
+
+    Returns
+    -------
+    bool
+        False only when no such process exists; a process we may not signal (another user's) counts as alive.
+    """
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
@@ -66,8 +89,24 @@ def process_alive(pid: int) -> bool:
 
 
 def sweep_stale_temporaries(folder: Path, naming: re.Pattern = _TEMP_NAME) -> list[Path]:
-    """Remove temporary files and folders in ``folder`` whose names match ``naming`` (group 1: the pid of the
-    process that made them; default: our temporary files and report folders) when that process no longer exists."""
+    """Remove the temporary files and folders in ``folder`` left by processes that no longer exist.
+
+    An entry is removed when its name matches ``naming`` (group 1: the pid of the process that made it; default:
+    our temporary files and report folders) and that process no longer exists.
+
+    Parameters
+    ----------
+    folder : Path
+        The folder to sweep (not its subfolders); one that cannot be listed is left alone.
+    naming : re.Pattern, optional
+        The names to consider; group 1 must capture the pid. Default: ``.NAME.lpPID-RANDOM.tmpEXT``, the names of
+        :func:`temp_path_for`, which the report folders use too. Entries of this process are never removed.
+
+    Returns
+    -------
+    list of Path
+        The files and folders removed (one that could not be removed is not listed and raises nothing).
+    """
     removed = []
     try:
         entries = list(os.scandir(folder))
@@ -93,7 +132,29 @@ def _same_file(a: Path, b: Path) -> bool:
 
 
 def check_output(path: Path, inputs: Iterable[os.PathLike | str | None] = (), text: bool = False) -> Path:
-    """Refuse an output path that cannot or must not be written (see the module docstring); returns it."""
+    """Refuse an output path that cannot or must not be written (see the module docstring); returns it.
+
+    Parameters
+    ----------
+    path : Path
+        The output file (a string is accepted too).
+    inputs : iterable of path-like or None, default ()
+        The command's input files; writing over any of them (the same file, by ``os.path.samefile``) is refused.
+        None entries are skipped.
+    text : bool, default False
+        The output is text: a path whose extension names an image format (:data:`IMAGE_EXTENSIONS`) is refused.
+
+    Returns
+    -------
+    Path
+        ``path`` as a :class:`~pathlib.Path`.
+
+    Raises
+    ------
+    InputError
+        ``path`` is a folder, its folder does not exist, it is one of ``inputs``, it has an image extension while
+        ``text`` is set, or it exists and is not a regular file.
+    """
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")
     if path.is_dir():
@@ -121,10 +182,36 @@ def _fsync(path: Path) -> None:
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike, inputs: Iterable = (), text: bool = False,
                 verify: Callable[[Path], None] | None = None) -> Iterator[Path]:
-    """Yield a temporary path beside ``path``; when the block succeeds, fsync it, run ``verify(tmp)`` (which raises
-    if the file is incomplete), give it the usual permissions and rename it onto ``path``. On any failure the
-    temporary file is removed and ``path`` is untouched. OS errors become one-line :class:`InputError`\\ s that name
-    ``path``, not the temporary file."""
+    """Yield a temporary path beside ``path``, and rename it onto ``path`` when the block succeeds.
+
+    When the block succeeds, fsync the temporary file, run ``verify(tmp)`` (which raises if the file is
+    incomplete), give it the usual permissions and rename it onto ``path``. On any failure the temporary file is
+    removed and ``path`` is untouched. OS errors become one-line :class:`InputError`\\ s that name ``path``, not the
+    temporary file. Before anything is written, ``path`` is checked (:func:`check_output`) and its folder swept of
+    stale temporaries (:func:`sweep_stale_temporaries`).
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file to write.
+    inputs : iterable of path-like, default ()
+        The command's input files, which ``path`` must not be (see :func:`check_output`).
+    text : bool, default False
+        The output is text: an image extension on ``path`` is refused.
+    verify : callable taking a Path, optional
+        Called on the fsync'd temporary file before the rename; it raises (an :class:`InputError`, say) if the file
+        is incomplete, and then ``path`` is left untouched.
+
+    Yields
+    ------
+    Path
+        The temporary path (:func:`temp_path_for`) the block writes to; it keeps ``path``'s extension.
+
+    Raises
+    ------
+    InputError
+        ``path`` is refused by :func:`check_output`, the block wrote nothing, or an OS error occurred on the way.
+    """
     path = check_output(Path(path), inputs, text)
     sweep_stale_temporaries(path.parent if str(path.parent) else Path("."))
     tmp = temp_path_for(path)
@@ -147,7 +234,30 @@ def atomic_path(path: str | os.PathLike, inputs: Iterable = (), text: bool = Fal
 
 
 def write_bytes(path: str | os.PathLike, data: bytes, inputs: Iterable = (), text: bool = False) -> Path:
-    """Write ``data`` to ``path`` atomically; the written size is checked before the rename."""
+    """Write ``data`` to ``path`` atomically; the written size is checked before the rename.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file to write (see :func:`atomic_path`).
+    data : bytes
+        The whole contents.
+    inputs : iterable of path-like, default ()
+        The command's input files, which ``path`` must not be.
+    text : bool, default False
+        The data is text: an image extension on ``path`` is refused.
+
+    Returns
+    -------
+    Path
+        ``path``, now holding ``data``.
+
+    Raises
+    ------
+    InputError
+        ``path`` is refused (:func:`check_output`), fewer bytes than ``len(data)`` were written, or an OS error
+        occurred (a full disk, say); ``path`` is then untouched.
+    """
     path = Path(path)
 
     def complete(tmp: Path) -> None:
@@ -162,7 +272,28 @@ def write_bytes(path: str | os.PathLike, data: bytes, inputs: Iterable = (), tex
 
 
 def write_text(path: str | os.PathLike, text: str, inputs: Iterable = ()) -> Path:
-    """Write UTF-8 text atomically; refuses a path with an image extension or one that is an input."""
+    """Write UTF-8 text atomically; refuses a path with an image extension or one that is an input.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file to write (see :func:`atomic_path`).
+    text : str
+        The whole contents, encoded as UTF-8.
+    inputs : iterable of path-like, default ()
+        The command's input files, which ``path`` must not be.
+
+    Returns
+    -------
+    Path
+        ``path``, now holding the text.
+
+    Raises
+    ------
+    InputError
+        ``path`` is refused (:func:`check_output`; an image extension is refused), the write was incomplete, or an
+        OS error occurred; ``path`` is then untouched.
+    """
     return write_bytes(path, text.encode("utf-8"), inputs, text=True)
 
 
@@ -174,7 +305,26 @@ def _umask() -> int:
 
 def digest_file(path: str | os.PathLike, digest) -> int:
     """Feed the file's bytes to ``digest`` (a hashlib object) in 1 MiB blocks; returns how many bytes there were.
-    Only a regular file: a FIFO would block the open and a device (``/dev/zero``) never end (an OSError)."""
+
+    Only a regular file: a FIFO would block the open and a device (``/dev/zero``) never end (an OSError).
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file to read.
+    digest : hashlib hash object
+        Anything with an ``update(bytes)`` method; it is updated in place.
+
+    Returns
+    -------
+    int
+        The number of bytes read.
+
+    Raises
+    ------
+    OSError
+        ``path`` is not a regular file (:class:`IsADirectoryError` for a folder), or it cannot be read.
+    """
     import stat
 
     if not stat.S_ISREG(os.stat(path).st_mode):

@@ -25,8 +25,31 @@ _SUFFIX = {"": 1, "K": 1 << 10, "M": 1 << 20, "G": 1 << 30, "T": 1 << 40}
 
 
 def positive_env(name: str, default: int, units: bool = False) -> int:
-    """The positive whole number in environment variable ``name`` (with ``units``: bytes, a K/M/G/T suffix allowed),
-    or ``default`` when it is unset or blank; anything else is a :class:`UsageError` naming the variable."""
+    """The positive whole number in environment variable ``name``, or ``default`` when it is unset or blank.
+
+    With ``units`` the value is bytes and a K/M/G/T suffix is allowed; anything else is a :class:`UsageError`
+    naming the variable.
+
+    Parameters
+    ----------
+    name : str
+        The environment variable, e.g. ``LIGHTPROBE_MAX_PIXELS``.
+    default : int
+        The value when the variable is unset or blank (returned as given, unchecked).
+    units : bool, default False
+        Read a number of bytes: digits with an optional suffix K, M, G or T (powers of 1024, any case, optionally
+        followed by ``B`` or ``iB``), e.g. ``8G``. Without it, only plain digits.
+
+    Returns
+    -------
+    int
+        The value, ≥ 1 (in bytes with ``units``).
+
+    Raises
+    ------
+    UsageError
+        The variable is set but is not a positive whole number (of bytes, with ``units``).
+    """
     text = os.environ.get(name)
     if text is None or not text.strip():
         return default
@@ -39,20 +62,67 @@ def positive_env(name: str, default: int, units: bool = False) -> int:
 
 
 def threads() -> int:
-    """Threads for numba's kernels and BLAS: ``LIGHTPROBE_THREADS``, or every core."""
+    """Threads for numba's kernels and BLAS: ``LIGHTPROBE_THREADS``, or every core.
+
+    Returns
+    -------
+    int
+        The number of threads, ≥ 1.
+
+    Raises
+    ------
+    UsageError
+        ``LIGHTPROBE_THREADS`` is set but is not a positive whole number.
+    """
     return positive_env("LIGHTPROBE_THREADS", os.cpu_count() or 1)
 
 
 def max_pixels() -> int:
+    """The most pixels of one image, read or made: ``LIGHTPROBE_MAX_PIXELS``, or :data:`DEFAULT_MAX_PIXELS` (2²⁷).
+
+    Returns
+    -------
+    int
+        The limit in pixels, ≥ 1.
+
+    Raises
+    ------
+    UsageError
+        ``LIGHTPROBE_MAX_PIXELS`` is set but is not a positive whole number.
+    """
     return positive_env("LIGHTPROBE_MAX_PIXELS", DEFAULT_MAX_PIXELS)
 
 
 def max_triangles() -> int:
+    """The most triangles of one scene, all meshes together: ``LIGHTPROBE_MAX_TRIANGLES``, or 2·10⁷.
+
+    The default is :data:`DEFAULT_MAX_TRIANGLES`.
+
+    Returns
+    -------
+    int
+        The limit in triangles, ≥ 1.
+
+    Raises
+    ------
+    UsageError
+        ``LIGHTPROBE_MAX_TRIANGLES`` is set but is not a positive whole number.
+    """
     return positive_env("LIGHTPROBE_MAX_TRIANGLES", DEFAULT_MAX_TRIANGLES)
 
 
 def physical_memory() -> int:
-    """Bytes of physical memory (or of the cgroup limit, when one is set and smaller)."""
+    """Bytes of physical memory (or of the cgroup limit, when one is set and smaller).
+
+    The cgroup limit is read from ``/sys/fs/cgroup/memory.max`` (v2) or
+    ``/sys/fs/cgroup/memory/memory.limit_in_bytes`` (v1); an unreadable file or one that is not a number (``max``)
+    is passed over.
+
+    Returns
+    -------
+    int
+        Bytes: page size × physical pages, or the smaller cgroup limit.
+    """
     total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     for path in ("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory/memory.limit_in_bytes"):
         try:
@@ -80,19 +150,61 @@ def _address_space_left() -> int | None:
 
 
 def max_memory() -> int:
-    """The memory budget of one command: ``LIGHTPROBE_MAX_MEMORY``, else half the physical memory — and never more
-    than the address space a ``ulimit -v`` leaves (under such a cap Mitsuba and numba crash instead of raising)."""
+    """The memory budget of one command: ``LIGHTPROBE_MAX_MEMORY``, else half the physical memory.
+
+    It is never more than the address space a ``ulimit -v`` leaves (under such a cap Mitsuba and numba crash
+    instead of raising).
+
+    Returns
+    -------
+    int
+        The budget in bytes: the variable's value, or half of :func:`physical_memory`, capped by the address space
+        this process may still map under ``ulimit -v`` (RLIMIT_AS) when there is such a limit.
+
+    Raises
+    ------
+    UsageError
+        ``LIGHTPROBE_MAX_MEMORY`` is set but is not a positive number of bytes (e.g. ``8G``).
+    """
     budget = positive_env("LIGHTPROBE_MAX_MEMORY", physical_memory() // 2, units=True)
     left = _address_space_left()
     return budget if left is None else min(budget, left)
 
 
 def gib(n: float) -> str:
+    """A byte count as people read it in a message: GiB with two decimals from 256 MiB up, else whole MiB.
+
+    Parameters
+    ----------
+    n : float
+        A number of bytes.
+
+    Returns
+    -------
+    str
+        For example ``"1.50 GiB"`` or ``"80 MiB"``.
+    """
     return f"{n / (1 << 30):.2f} GiB" if n >= 1 << 28 else f"{n / (1 << 20):.0f} MiB"
 
 
 def check_pixels(count: int, what: str) -> None:
-    """Refuse ``count`` pixels (an exact Python integer: no overflow) over :func:`max_pixels`."""
+    """Refuse ``count`` pixels (an exact Python integer: no overflow) over :func:`max_pixels`.
+
+    Parameters
+    ----------
+    count : int
+        The pixels of the image to be read or made, as an exact Python integer (a product of numpy integers could
+        overflow).
+    what : str
+        What is refused, named at the start of the message (e.g. a file and the size its header claims).
+
+    Raises
+    ------
+    BudgetError
+        ``count`` is over :func:`max_pixels` (the message says to set ``LIGHTPROBE_MAX_PIXELS`` to raise it).
+    UsageError
+        ``LIGHTPROBE_MAX_PIXELS`` is set but is not a positive whole number.
+    """
     limit = max_pixels()
     if count > limit:
         raise BudgetError(f"refusing {what}: {count} pixels is over the limit of {limit} "
@@ -106,10 +218,32 @@ KERNEL_BYTES = 224 << 20
 
 
 def check_memory(work_bytes: int, what: str, virtual_bytes: int = 0, kernels: bool = False) -> None:
-    """Refuse work whose estimated peak, :data:`PROCESS_BYTES` (plus :data:`KERNEL_BYTES` when the work runs
-    compiled ``kernels``) plus ``work_bytes`` (the data's own memory), exceeds :func:`max_memory`.
-    ``virtual_bytes``: address space the work maps beyond what it touches (a JIT's reservations), which counts only
-    against a ``ulimit -v``."""
+    """Refuse work whose estimated peak memory exceeds :func:`max_memory`.
+
+    The estimated peak is :data:`PROCESS_BYTES` (plus :data:`KERNEL_BYTES` when the work runs compiled ``kernels``)
+    plus ``work_bytes`` (the data's own memory). ``virtual_bytes``: address space the work maps beyond what it
+    touches (a JIT's reservations), which counts only against a ``ulimit -v``.
+
+    Parameters
+    ----------
+    work_bytes : int
+        Bytes of the data's own memory at the work's peak.
+    what : str
+        What is refused, named at the start of the message (e.g. ``"rendering 1920x1080 at 4x4 …"``).
+    virtual_bytes : int, default 0
+        Address space mapped beyond what is touched; with ``work_bytes`` it is checked against what a ``ulimit -v``
+        leaves, and against nothing else.
+    kernels : bool, default False
+        The work runs compiled (numba) kernels: :data:`KERNEL_BYTES` is added to the estimate.
+
+    Raises
+    ------
+    BudgetError
+        ``work_bytes + virtual_bytes`` is over the address space a ``ulimit -v`` leaves, or the estimated peak is
+        over :func:`max_memory` (the message says to set ``LIGHTPROBE_MAX_MEMORY`` to raise it).
+    UsageError
+        ``LIGHTPROBE_MAX_MEMORY`` is set but is not a positive number of bytes.
+    """
     limit = max_memory()
     estimate = PROCESS_BYTES + (KERNEL_BYTES if kernels else 0) + work_bytes
     left = _address_space_left()
