@@ -49,13 +49,40 @@ def _unit(v: np.ndarray) -> np.ndarray:
 
 
 def reflect(w: np.ndarray, n: np.ndarray) -> np.ndarray:
-    """The mirror direction of ``w`` (leaving the surface) about ``n``: 2(n·w)n − w."""
+    """The mirror direction of ``w`` (leaving the surface) about ``n``: 2(n·w)n − w.
+
+    Parameters
+    ----------
+    w : numpy.ndarray
+        (..., 3) unit directions leaving the surface, in any one frame shared with ``n``.
+    n : numpy.ndarray
+        (..., 3) unit normals (or any unit axis), broadcasting with ``w``.
+
+    Returns
+    -------
+    numpy.ndarray
+        (..., 3) float64 mirror directions, unit when ``w`` and ``n`` are, in the same frame; the broadcast shape.
+    """
     return 2 * _dot(n, w)[..., None] * n - w
 
 
 def tangent_frame(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Two unit vectors t, s completing unit ``n`` (..., 3) to a right-handed orthonormal frame (t, s, n) (Duff et
-    al. 2017, branchless)."""
+    """Two unit vectors t, s completing unit ``n`` to a right-handed orthonormal frame (t, s, n).
+
+    Duff et al. 2017's branchless construction (its signs follow that of n_z).
+
+    Parameters
+    ----------
+    n : numpy.ndarray
+        (..., 3) unit vectors, in any frame.
+
+    Returns
+    -------
+    t : numpy.ndarray
+        (..., 3) float64 unit tangents, perpendicular to ``n``.
+    s : numpy.ndarray
+        (..., 3) float64 unit tangents with t × s = n.
+    """
     x, y, z = n[..., 0], n[..., 1], n[..., 2]
     sign = np.where(z >= 0, 1.0, -1.0)
     a = -1.0 / (sign + z)
@@ -152,32 +179,130 @@ class BRDF:
     central = "normal"
 
     def eval(self, wi: np.ndarray, wo: np.ndarray, n: np.ndarray) -> np.ndarray:
+        """The BRDF value f_r(wi, wo; n) (sr⁻¹, linear RGB), **not** multiplied by the cosine n·wi.
+
+        0 where either direction is below the surface (n·wi ≤ 0 or n·wo ≤ 0): no transmission. Each subclass states its
+        formula.
+
+        Parameters
+        ----------
+        wi : numpy.ndarray
+            (..., 3) unit directions leaving the surface toward the light.
+        wo : numpy.ndarray
+            (..., 3) unit directions leaving the surface toward the eye.
+        n : numpy.ndarray
+            (..., 3) unit surface normals. The three arrays are in any one frame and broadcast together.
+
+        Returns
+        -------
+        numpy.ndarray
+            (..., 3) float64 f_r, in the broadcast shape of the arguments.
+        """
         raise NotImplementedError
 
     def sample(self, wo: np.ndarray, n: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Incident directions drawn for the uniforms ``u`` by importance sampling, and their density.
+
+        Samples may fall below the surface; :meth:`eval` gives them weight 0.
+
+        Parameters
+        ----------
+        wo : numpy.ndarray
+            (..., 3) unit directions leaving the surface toward the eye.
+        n : numpy.ndarray
+            (..., 3) unit surface normals, in the frame of ``wo``.
+        u : numpy.ndarray
+            (..., 2) uniforms in [0, 1)², one pair per sample, broadcasting with ``wo`` and ``n``.
+
+        Returns
+        -------
+        wi : numpy.ndarray
+            (..., 3) float64 unit incident directions (toward the light), in the frame of ``n``.
+        pdf : numpy.ndarray
+            (...,) float64 density of each ``wi`` in solid angle (sr⁻¹), the value :meth:`pdf` gives.
+        """
         raise NotImplementedError
 
     def pdf(self, wi: np.ndarray, wo: np.ndarray, n: np.ndarray) -> np.ndarray:
+        """The density in solid angle (sr⁻¹) with which :meth:`sample` draws ``wi`` for the view ``wo``.
+
+        Parameters
+        ----------
+        wi : numpy.ndarray
+            (..., 3) unit incident directions (toward the light).
+        wo : numpy.ndarray
+            (..., 3) unit directions toward the eye.
+        n : numpy.ndarray
+            (..., 3) unit surface normals; the three arrays in one frame, broadcasting together.
+
+        Returns
+        -------
+        numpy.ndarray
+            (...,) float64 density, ≥ 0.
+        """
         raise NotImplementedError
 
     def params(self) -> dict:
+        """The parameters of this BRDF, keyed as :func:`parse_brdf` reads them.
+
+        :meth:`spec` and :meth:`describe` are built from them. A subclass may leave out a parameter at its neutral
+        value (a white albedo, ks = 1, no Fresnel).
+
+        Returns
+        -------
+        dict
+            Parameter name → value (a float, an RGB tuple or a conductor's name); empty for the base class.
+        """
         return {}
 
     def kernel(self) -> tuple[int, np.ndarray, np.ndarray]:
-        """(model number, parameters, Fresnel table) for the compiled sums (:func:`reflected_sums`)."""
+        """(model number, parameters, Fresnel table) for the compiled sums (:func:`reflected_sums`).
+
+        Returns
+        -------
+        model : int
+            One of ``LAMBERT``, ``PHONG``, ``BLINN``, ``GGX_MODEL``, ``COAT``, ``PLASTIC``.
+        params : numpy.ndarray
+            (P,) float64: the numbers the compiled formula of that model reads (each subclass says which).
+        table : numpy.ndarray
+            (M, 3) float64 Fresnel table over cos ∈ [0, 1] (:func:`fresnel_table`), or (2, 3) ones for no Fresnel.
+        """
         raise NotImplementedError
 
     def lobe_width(self) -> float:
-        """A characteristic angular width (radians) of f·cos about the central direction: how fine a map must be
-        to resolve the lobe (texels a quarter of it or finer)."""
+        """A characteristic angular width (radians) of f·cos about the central direction.
+
+        It says how fine a map must be to resolve the lobe (texels a quarter of it or finer).
+
+        Returns
+        -------
+        float
+            The width in radians, at most π/2.
+        """
         raise NotImplementedError
 
     def spec(self) -> str:
-        """The ``name:key=value,…`` text :func:`parse_brdf` reads back to this BRDF."""
+        """The ``name:key=value,…`` text :func:`parse_brdf` reads back to this BRDF.
+
+        Returns
+        -------
+        str
+            ``name`` alone when :meth:`params` is empty; RGB values written r/g/b.
+        """
         items = ",".join(f"{k}={_spec_value(v)}" for k, v in self.params().items())
         return f"{self.name}:{items}" if items else self.name
 
     def describe(self) -> dict:
+        """The BRDF as a dict: its ``name``, ``central`` direction and :meth:`params`.
+
+        A radiance-set manifest stores it as its ``brdf`` object, beside :meth:`spec`
+        (:func:`lightprobe.glossy.radiancefile.manifest`).
+
+        Returns
+        -------
+        dict
+            ``{"name": …, "central": "normal" or "mirror", **params}``.
+        """
         return {"name": self.name, "central": self.central, **self.params()}
 
     def __repr__(self):
@@ -215,21 +340,92 @@ class Lambert(BRDF):
         self.albedo = tuple(a)
 
     def eval(self, wi, wo, n):
+        """f_r = albedo / π (sr⁻¹, RGB) where wi and wo are both above the surface, else 0.
+
+        Parameters
+        ----------
+        wi : numpy.ndarray
+            (..., 3) unit directions toward the light; only their side of the surface matters.
+        wo : numpy.ndarray
+            (..., 3) unit directions toward the eye; only their side of the surface matters.
+        n : numpy.ndarray
+            (..., 3) unit normals, in the frame of ``wi`` and ``wo`` and broadcasting with them.
+
+        Returns
+        -------
+        numpy.ndarray
+            (..., 3) float64: albedo / π, or 0 below the surface.
+        """
         return np.where(_above(wi, wo, n)[..., None], np.asarray(self.albedo) / np.pi, 0.0)
 
     def sample(self, wo, n, u):
+        """Cosine-weighted directions about ``n``: cos θ = √(1 − u₀), azimuth 2π u₁, density cos θ / π.
+
+        Parameters
+        ----------
+        wo : numpy.ndarray
+            View directions; unused, as the cosine lobe does not depend on the view.
+        n : numpy.ndarray
+            (..., 3) unit normals: the axis of the lobe.
+        u : numpy.ndarray
+            (..., 2) uniforms in [0, 1)², broadcasting with ``n``.
+
+        Returns
+        -------
+        wi : numpy.ndarray
+            (..., 3) float64 unit directions, all above the surface, in the frame of ``n``.
+        pdf : numpy.ndarray
+            (...,) float64 cos θ / π (sr⁻¹).
+        """
         return _cosine_sample(n, u)
 
     def pdf(self, wi, wo, n):
+        """max(n·wi, 0) / π (sr⁻¹): the cosine lobe :meth:`sample` draws, the same for every view.
+
+        Parameters
+        ----------
+        wi : numpy.ndarray
+            (..., 3) unit incident directions.
+        wo : numpy.ndarray
+            View directions; unused.
+        n : numpy.ndarray
+            (..., 3) unit normals, in the frame of ``wi``, broadcasting with it.
+
+        Returns
+        -------
+        numpy.ndarray
+            (...,) float64 density; 0 below the surface.
+        """
         return np.maximum(_dot(n, wi), 0.0) / np.pi
 
     def params(self):
+        """``{}`` for a white albedo, else ``{"albedo": (r, g, b)}``.
+
+        Returns
+        -------
+        dict
+            The albedo, when it is not (1, 1, 1).
+        """
         return {} if self.albedo == (1.0, 1.0, 1.0) else {"albedo": self.albedo}
 
     def kernel(self):
+        """``LAMBERT``, the albedo and no Fresnel term, for :func:`reflected_sums`.
+
+        Returns
+        -------
+        tuple of (int, numpy.ndarray, numpy.ndarray)
+            ``LAMBERT``; the albedo, (3,) float64; the (2, 3) table of ones (no Fresnel).
+        """
         return LAMBERT, np.array(self.albedo), _NO_FRESNEL
 
     def lobe_width(self):
+        """π/2: the cosine lobe spans the whole hemisphere about the normal.
+
+        Returns
+        -------
+        float
+            π/2 radians.
+        """
         return np.pi / 2
 
 
@@ -256,26 +452,104 @@ class Phong(BRDF):
             raise UsageError(f"ks must be in [0, 1], got {self.ks!r}")
 
     def eval(self, wi, wo, n):
+        """f_r = ks (n + 2)/(2π) · max(0, r·wi)ⁿ, r the mirror of ``wo`` about the normal; 0 below the surface.
+
+        Grey (the same in R, G and B), sr⁻¹.
+
+        Parameters
+        ----------
+        wi : numpy.ndarray
+            (..., 3) unit directions toward the light, compared with the mirror direction r.
+        wo : numpy.ndarray
+            (..., 3) unit directions toward the eye, mirrored about ``n`` to the lobe's axis r.
+        n : numpy.ndarray
+            (..., 3) unit normals: the mirror's and the horizon's; the three arrays in one frame, broadcasting together.
+
+        Returns
+        -------
+        numpy.ndarray
+            (..., 3) float64 f_r, the same in the three channels.
+        """
         c = np.maximum(_dot(reflect(wo, n), wi), 0.0)
         f = self.ks * (self.n + 2) / (2 * np.pi) * c ** self.n
         return np.where(_above(wi, wo, n), f, 0.0)[..., None] * np.ones(3)
 
     def sample(self, wo, n, u):
+        """Directions about the mirror r of ``wo``: cos θ = u₀^(1/(n+1)) from r, azimuth 2π u₁.
+
+        Part of the lobe about r can lie below the surface (grazing views): those samples keep their density and have
+        weight 0 in :meth:`eval`.
+
+        Parameters
+        ----------
+        wo : numpy.ndarray
+            (..., 3) unit directions toward the eye, mirrored about ``n`` to the axis r.
+        n : numpy.ndarray
+            (..., 3) unit normals about which ``wo`` is mirrored, in its frame.
+        u : numpy.ndarray
+            (..., 2) uniforms in [0, 1)²: u₀ sets the angle from r, u₁ the azimuth about it.
+
+        Returns
+        -------
+        wi : numpy.ndarray
+            (..., 3) float64 unit directions in the lobe about r.
+        pdf : numpy.ndarray
+            (...,) float64 (n + 1)/(2π) cosⁿ of their angle from r (sr⁻¹).
+        """
         cos_t = u[..., 0] ** (1 / (self.n + 1))
         wi = _about(reflect(wo, n), cos_t, 2 * np.pi * u[..., 1])
         return wi, self.pdf(wi, wo, n)
 
     def pdf(self, wi, wo, n):
+        """(n + 1)/(2π) · max(0, r·wi)ⁿ (sr⁻¹), r the mirror of ``wo``: the density of :meth:`sample`.
+
+        A density over the whole sphere: directions below the surface are not set to 0.
+
+        Parameters
+        ----------
+        wi : numpy.ndarray
+            (..., 3) unit incident directions, measured from r.
+        wo : numpy.ndarray
+            (..., 3) unit directions toward the eye, mirrored about ``n`` to r.
+        n : numpy.ndarray
+            (..., 3) unit normals of the mirror; the three arrays in one frame.
+
+        Returns
+        -------
+        numpy.ndarray
+            (...,) float64 density of the cosⁿ lobe about r.
+        """
         c = np.maximum(_dot(reflect(wo, n), wi), 0.0)
         return (self.n + 1) / (2 * np.pi) * c ** self.n
 
     def params(self):
+        """The exponent ``n``, and ``ks`` unless it is 1: ``phong:n=…`` or ``phong:n=…,ks=…``.
+
+        Returns
+        -------
+        dict
+            ``{"n": n}``, or with ``"ks"`` too.
+        """
         return {"n": self.n} if self.ks == 1 else {"n": self.n, "ks": self.ks}
 
     def kernel(self):
+        """``PHONG`` with the parameters [n, ks] and no Fresnel term, for :func:`reflected_sums`.
+
+        Returns
+        -------
+        tuple of (int, numpy.ndarray, numpy.ndarray)
+            ``PHONG``; [n, ks] as (2,) float64; the (2, 3) table of ones.
+        """
         return PHONG, np.array([self.n, self.ks]), _NO_FRESNEL
 
     def lobe_width(self):
+        """√(2/n) radians about the mirror direction, at most π/2.
+
+        Returns
+        -------
+        float
+            min(π/2, √(2/n)), radians.
+        """
         return min(np.pi / 2, math.sqrt(2 / max(self.n, 1e-9)))
 
 
@@ -296,42 +570,144 @@ class BlinnPhong(BRDF):
             raise UsageError(f"ks must be in [0, 1], got {self.ks!r}")
 
     def eval(self, wi, wo, n):
+        """f_r = ks · c_n · max(n·h, 0)ⁿ, h = (wi + wo)/|wi + wo| the half vector; 0 below the surface.
+
+        c_n is the exact normalisation of the class docstring. Grey (the same in R, G and B), sr⁻¹.
+
+        Parameters
+        ----------
+        wi : numpy.ndarray
+            (..., 3) unit directions toward the light; with ``wo`` they make the half vector h.
+        wo : numpy.ndarray
+            (..., 3) unit directions toward the eye, the other half of h.
+        n : numpy.ndarray
+            (..., 3) unit normals, compared with h; the three arrays in one frame, broadcasting together.
+
+        Returns
+        -------
+        numpy.ndarray
+            (..., 3) float64 f_r, grey: ks · c_n · (n·h)ⁿ, or 0.
+        """
         h = _unit(wi + wo)
         norm = (self.n + 2) * (self.n + 4) / (8 * np.pi * (2 ** (-self.n / 2) + self.n))
         f = self.ks * norm * np.maximum(_dot(n, h), 0.0) ** self.n
         return np.where(_above(wi, wo, n), f, 0.0)[..., None] * np.ones(3)
 
     def sample(self, wo, n, u):
+        """Half vectors h about ``n`` (cos θ_h = u₀^(1/(n+1)), azimuth 2π u₁) and wi the mirror of ``wo`` about h.
+
+        h has the density (n + 1)/(2π) (n·h)ⁿ; :meth:`pdf` turns it into the density of wi. Directions that fall below
+        the surface have weight 0 in :meth:`eval`.
+
+        Parameters
+        ----------
+        wo : numpy.ndarray
+            (..., 3) unit directions toward the eye, reflected about each sampled h.
+        n : numpy.ndarray
+            (..., 3) unit normals: the axis about which h is drawn.
+        u : numpy.ndarray
+            (..., 2) uniforms in [0, 1)²: u₀ sets h's angle from ``n``, u₁ its azimuth.
+
+        Returns
+        -------
+        wi : numpy.ndarray
+            (..., 3) float64 unit mirrors of ``wo`` about the sampled half vectors.
+        pdf : numpy.ndarray
+            (...,) float64 their :meth:`pdf` (sr⁻¹), through the Jacobian 1/(4 |wo·h|).
+        """
         cos_h = u[..., 0] ** (1 / (self.n + 1))
         h = _about(n, cos_h, 2 * np.pi * u[..., 1])
         wi = reflect(wo, h)
         return wi, self.pdf(wi, wo, n)
 
     def pdf(self, wi, wo, n):
+        """p_h / (4 |wo·h|) (sr⁻¹), p_h = (n + 1)/(2π) max(n·h, 0)ⁿ: the half-vector density as a density of wi.
+
+        Parameters
+        ----------
+        wi : numpy.ndarray
+            (..., 3) unit incident directions; with ``wo`` they make h = (wi + wo)/|wi + wo|.
+        wo : numpy.ndarray
+            (..., 3) unit directions toward the eye; |wo·h| is the Jacobian's cosine.
+        n : numpy.ndarray
+            (..., 3) unit normals, the axis of the (n·h)ⁿ lobe; the three arrays in one frame.
+
+        Returns
+        -------
+        numpy.ndarray
+            (...,) float64 density, not set to 0 where wi is below the surface.
+        """
         h = _unit(wi + wo)
         p_h = (self.n + 1) / (2 * np.pi) * np.maximum(_dot(n, h), 0.0) ** self.n
         return p_h / np.maximum(4 * np.abs(_dot(wo, h)), 1e-300)
 
     def params(self):
+        """The exponent ``n``, and ``ks`` unless it is 1: ``blinn:n=…`` or ``blinn:n=…,ks=…``.
+
+        Returns
+        -------
+        dict
+            The Blinn–Phong exponent ``n``, with ``"ks"`` when it is not 1.
+        """
         return {"n": self.n} if self.ks == 1 else {"n": self.n, "ks": self.ks}
 
     def kernel(self):
+        """``BLINN`` with the parameters [n, ks · c_n] (the normalisation folded in) and no Fresnel term.
+
+        Returns
+        -------
+        tuple of (int, numpy.ndarray, numpy.ndarray)
+            ``BLINN``; [n, ks · c_n] as (2,) float64; the (2, 3) table of ones.
+        """
         norm = (self.n + 2) * (self.n + 4) / (8 * np.pi * (2 ** (-self.n / 2) + self.n))
         return BLINN, np.array([self.n, self.ks * norm]), _NO_FRESNEL
 
     def lobe_width(self):
+        """2√(2/n) radians, at most π/2: twice :class:`Phong`'s, as wi turns twice as far as the half vector.
+
+        Returns
+        -------
+        float
+            min(π/2, 2√(2/n)), radians.
+        """
         return min(np.pi / 2, 2 * math.sqrt(2 / max(self.n, 1e-9)))
 
 
 def ggx_d(cos_h: np.ndarray, alpha: float) -> np.ndarray:
-    """The normalised GGX distribution D(h) (∫ D cos θ_h dω_h = 1)."""
+    """The normalised GGX distribution D(h) (∫ D cos θ_h dω_h = 1).
+
+    Parameters
+    ----------
+    cos_h : numpy.ndarray
+        cos θ_h = n·h, any shape; D is 0 where it is ≤ 0.
+    alpha : float
+        The width α (α = roughness² in the engines' terms), > 0; :class:`GGX` takes it in (0, 1].
+
+    Returns
+    -------
+    numpy.ndarray
+        D (sr⁻¹), float64, the shape of ``cos_h``.
+    """
     c2 = np.clip(cos_h, 0.0, 1.0) ** 2
     a2 = alpha * alpha
     return np.where(cos_h > 0, a2 / (np.pi * (c2 * (a2 - 1) + 1) ** 2), 0.0)
 
 
 def smith_g1(cos: np.ndarray, alpha: float) -> np.ndarray:
-    """GGX Smith masking G1(w) = 2 cos / (cos + √(α² + (1 − α²) cos²)), cos = n·w (0 below the surface)."""
+    """GGX Smith masking G1(w) = 2 cos / (cos + √(α² + (1 − α²) cos²)), cos = n·w (0 below the surface).
+
+    Parameters
+    ----------
+    cos : numpy.ndarray
+        cos = n·w of the direction w, any shape.
+    alpha : float
+        The GGX width α (α = roughness²), as in :func:`ggx_d`.
+
+    Returns
+    -------
+    numpy.ndarray
+        G1 in [0, 1], float64, the shape of ``cos``.
+    """
     c = np.clip(cos, 0.0, 1.0)
     a2 = alpha * alpha
     return np.where(cos > 0, 2 * c / np.maximum(c + np.sqrt(a2 + (1 - a2) * c * c), 1e-300), 0.0)
@@ -359,6 +735,24 @@ class GGX(BRDF):
         self.alpha = _alpha(self.alpha)
 
     def eval(self, wi, wo, n):
+        """f_r = D(h) G1(wi) G1(wo) F(h·wi) / (4 (n·wi)(n·wo)), h the half vector of wi and wo; 0 below the surface.
+
+        RGB through the Fresnel term (grey without one), sr⁻¹.
+
+        Parameters
+        ----------
+        wi : numpy.ndarray
+            (..., 3) unit directions toward the light; the Fresnel term is taken at h·wi.
+        wo : numpy.ndarray
+            (..., 3) unit directions toward the eye, masked by G1(wo).
+        n : numpy.ndarray
+            (..., 3) unit macro-surface normals, the axis of D; the three arrays in one frame, broadcasting together.
+
+        Returns
+        -------
+        numpy.ndarray
+            (..., 3) float64 f_r, coloured by the Fresnel term.
+        """
         h = _unit(wi + wo)
         cos_i, cos_o = _dot(n, wi), _dot(n, wo)
         dg = ggx_d(_dot(n, h), self.alpha) * smith_g1(cos_i, self.alpha) * smith_g1(cos_o, self.alpha)
@@ -366,6 +760,27 @@ class GGX(BRDF):
         return f[..., None] * self.fresnel(_dot(h, wi))
 
     def sample(self, wo, n, u):
+        """Half vectors h distributed as D(h) cos θ_h about ``n``, and wi the mirror of ``wo`` about h.
+
+        cos θ_h = √((1 − u₀)/(1 + (α² − 1) u₀)), azimuth 2π u₁. Directions that fall below the surface have weight 0 in
+        :meth:`eval`.
+
+        Parameters
+        ----------
+        wo : numpy.ndarray
+            (..., 3) unit directions toward the eye, reflected about each sampled microfacet normal h.
+        n : numpy.ndarray
+            (..., 3) unit macro-surface normals, the axis of D.
+        u : numpy.ndarray
+            (..., 2) uniforms in [0, 1)²: u₀ sets cos θ_h, u₁ the azimuth of h.
+
+        Returns
+        -------
+        wi : numpy.ndarray
+            (..., 3) float64 unit mirrors of ``wo`` about the sampled microfacet normals.
+        pdf : numpy.ndarray
+            (...,) float64 their :meth:`pdf`, D(h) cos θ_h / (4 |wo·h|) (sr⁻¹).
+        """
         a2 = self.alpha * self.alpha
         cos_h = np.sqrt((1 - u[..., 0]) / (1 + (a2 - 1) * u[..., 0]))
         h = _about(n, cos_h, 2 * np.pi * u[..., 1])
@@ -373,11 +788,37 @@ class GGX(BRDF):
         return wi, self.pdf(wi, wo, n)
 
     def pdf(self, wi, wo, n):
+        """D(h) (n·h)⁺ / (4 |wo·h|) (sr⁻¹): the density of :meth:`sample`'s half vectors, as a density of wi.
+
+        Parameters
+        ----------
+        wi : numpy.ndarray
+            (..., 3) unit incident directions; with ``wo`` they make the microfacet normal h.
+        wo : numpy.ndarray
+            (..., 3) unit directions toward the eye; the Jacobian divides by 4 |wo·h|.
+        n : numpy.ndarray
+            (..., 3) unit macro-surface normals, the axis of D; the three arrays in one frame.
+
+        Returns
+        -------
+        numpy.ndarray
+            (...,) float64 density; 0 where h is below the surface (n·h ≤ 0).
+        """
         h = _unit(wi + wo)
         cos_h = _dot(n, h)
         return ggx_d(cos_h, self.alpha) * np.maximum(cos_h, 0.0) / np.maximum(4 * np.abs(_dot(wo, h)), 1e-300)
 
     def params(self):
+        """α, and the Fresnel term as :func:`parse_brdf` reads it: ``f0``, ``ior``, ``conductor`` or ``eta`` and ``k``.
+
+        ``f0`` appears only when it is not 1 (one number when grey, else its r, g, b); a conductor is named when its
+        (η, k) is one of CONDUCTORS, else given as ``eta`` and ``k``.
+
+        Returns
+        -------
+        dict
+            ``{"alpha": α}`` plus the Fresnel's entries.
+        """
         out = {"alpha": self.alpha}
         fr = self.fresnel
         if isinstance(fr, Schlick):
@@ -391,10 +832,26 @@ class GGX(BRDF):
         return out
 
     def kernel(self):
+        """``GGX_MODEL`` with the parameter [α] and the Fresnel term tabulated (:func:`fresnel_table`).
+
+        Schlick's with f0 = 1 is the (2, 3) table of ones: no Fresnel.
+
+        Returns
+        -------
+        tuple of (int, numpy.ndarray, numpy.ndarray)
+            ``GGX_MODEL``; [α] as (1,) float64; the Fresnel table, (FRESNEL_STEPS + 1, 3) or (2, 3) float64.
+        """
         constant = isinstance(self.fresnel, Schlick) and self.fresnel.f0 == (1.0, 1.0, 1.0)
         return GGX_MODEL, np.array([self.alpha]), _NO_FRESNEL if constant else fresnel_table(self.fresnel)
 
     def lobe_width(self):
+        """2α radians about the mirror direction, at most π/2.
+
+        Returns
+        -------
+        float
+            min(π/2, 2α), radians.
+        """
         return min(np.pi / 2, 2 * self.alpha)
 
 
@@ -420,14 +877,69 @@ class Coat(BRDF):
         return 1 - self._coat.fresnel(cos)
 
     def eval(self, wi, wo, n):
+        """f_r = f_GGX + (1 − F(n·wi))(1 − F(n·wo)) albedo/π: the coat's reflection plus the base seen through it.
+
+        F is the coat's exact dielectric Fresnel term; both parts are 0 below the surface. RGB, sr⁻¹.
+
+        Parameters
+        ----------
+        wi : numpy.ndarray
+            (..., 3) unit directions toward the light; the light reaches the base through 1 − F(n·wi).
+        wo : numpy.ndarray
+            (..., 3) unit directions toward the eye; the base's light leaves through 1 − F(n·wo).
+        n : numpy.ndarray
+            (..., 3) unit normals, of both the coat and the base; the three arrays in one frame, broadcasting together.
+
+        Returns
+        -------
+        numpy.ndarray
+            (..., 3) float64 f_r: the coat's part plus the base's.
+        """
         base = self._base.eval(wi, wo, n) * self._through(_dot(n, wi)) * self._through(_dot(n, wo))
         return self._coat.eval(wi, wo, n) + base
 
     def specular_share(self, wo, n) -> np.ndarray:
-        """The probability of sampling the coat's lobe: its Fresnel weight at the view (at least 0.1, at most 0.9)."""
+        """The probability of sampling the coat's lobe: its Fresnel weight at the view (at least 0.1, at most 0.9).
+
+        That weight is twice the coat's Fresnel reflectance F(n·wo) (a dielectric's: the same in R, G and B), clipped to
+        [0.1, 0.9].
+
+        Parameters
+        ----------
+        wo : numpy.ndarray
+            (..., 3) unit directions toward the eye.
+        n : numpy.ndarray
+            (..., 3) unit normals, in the frame of ``wo``, broadcasting with it.
+
+        Returns
+        -------
+        numpy.ndarray
+            (...,) float64 probabilities in [0.1, 0.9].
+        """
         return np.clip(self._coat.fresnel(_dot(n, wo))[..., 0] * 2, 0.1, 0.9)
 
     def sample(self, wo, n, u):
+        """The coat's GGX lobe with probability :meth:`specular_share`, else the base's cosine lobe about ``n``.
+
+        u₀ picks the lobe and is stretched back to [0, 1) within the part that picked it, so each lobe gets well-spread
+        uniforms; the density returned is the mixture's (:meth:`pdf`).
+
+        Parameters
+        ----------
+        wo : numpy.ndarray
+            (..., 3) unit directions toward the eye; they set the share and the coat's mirror lobe.
+        n : numpy.ndarray
+            (..., 3) unit normals, the axis of both lobes, in the frame of ``wo``.
+        u : numpy.ndarray
+            (..., 2) uniforms in [0, 1)²: u₀ picks the lobe (and is reused within it), u₁ the azimuth.
+
+        Returns
+        -------
+        wi : numpy.ndarray
+            (..., 3) float64 unit directions from whichever lobe was picked.
+        pdf : numpy.ndarray
+            (...,) float64 the mixture's density of each (sr⁻¹).
+        """
         share = self.specular_share(wo, n)
         pick = u[..., 0] < share
         # the picked half of u[..., 0] stretched back to [0, 1): each lobe gets well-spread uniforms
@@ -437,16 +949,53 @@ class Coat(BRDF):
         return wi, self.pdf(wi, wo, n)
 
     def pdf(self, wi, wo, n):
+        """share · p_GGX + (1 − share) · p_cosine (sr⁻¹), share the :meth:`specular_share` at the view.
+
+        Parameters
+        ----------
+        wi : numpy.ndarray
+            (..., 3) unit incident directions, weighed by both lobes.
+        wo : numpy.ndarray
+            (..., 3) unit directions toward the eye; they set the share.
+        n : numpy.ndarray
+            (..., 3) unit normals, the axis of D and of the cosine lobe; the three arrays in one frame.
+
+        Returns
+        -------
+        numpy.ndarray
+            (...,) float64 density of the mixture.
+        """
         share = self.specular_share(wo, n)
         return share * self._coat.pdf(wi, wo, n) + (1 - share) * self._base.pdf(wi, wo, n)
 
     def params(self):
+        """α, ``ior`` and the base's ``albedo``, always all three.
+
+        Returns
+        -------
+        dict
+            ``{"alpha": α, "ior": ior, "albedo": (r, g, b)}``.
+        """
         return {"alpha": self.alpha, "ior": float(self.ior), "albedo": self.albedo}
 
     def kernel(self):
+        """``COAT`` with the parameters [α, albedo r, g, b] and the coat's dielectric Fresnel term tabulated.
+
+        Returns
+        -------
+        tuple of (int, numpy.ndarray, numpy.ndarray)
+            ``COAT``; (4,) float64 parameters; the (FRESNEL_STEPS + 1, 3) float64 table of :func:`fresnel_table`.
+        """
         return COAT, np.array([self.alpha, *self.albedo]), fresnel_table(self._coat.fresnel)
 
     def lobe_width(self):
+        """The coat's GGX lobe width, min(π/2, 2α) radians; the base's cosine lobe does not count.
+
+        Returns
+        -------
+        float
+            Radians.
+        """
         return self._coat.lobe_width()
 
 
@@ -480,10 +1029,30 @@ def _half_vector_quadrature(alpha: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def rough_dielectric_albedo(alpha: float, eta: float, mu: np.ndarray, transmitted: bool) -> np.ndarray:
-    """The share of light arriving at cos θ = μ (from the side of index 1, relative index ``eta`` beyond) that
-    the rough GGX interface reflects (``transmitted`` False) or refracts through it (True): over microfacets m
-    seen from wi (density G1(wi) (wi·m) D(m) / μ), the mean of F · G1(reflected) or (1 − F) · G1(refracted) —
-    the single-scattering albedos Mitsuba tabulates for roughplastic. Midpoint quadrature over m."""
+    """The share of light arriving at cos θ = μ that a rough GGX dielectric interface reflects or lets through.
+
+    Light comes from the side of index 1, relative index ``eta`` beyond. The interface reflects it (``transmitted``
+    False) or refracts it through (True): over microfacets m seen from wi (density G1(wi) (wi·m) D(m) / μ), the mean
+    of F · G1(reflected) or (1 − F) · G1(refracted) — the single-scattering albedos Mitsuba tabulates for
+    roughplastic. Midpoint quadrature over m.
+
+    Parameters
+    ----------
+    alpha : float
+        The interface's GGX width α (α = roughness²), in (0, 1].
+    eta : float
+        Relative index of refraction beyond the interface; below 1 for light from inside (total internal reflection
+        past the critical angle).
+    mu : numpy.ndarray
+        (M,) cosines μ of the incident direction to the normal, in (0, 1].
+    transmitted : bool
+        False for the share reflected, True for the share refracted through.
+
+    Returns
+    -------
+    numpy.ndarray
+        (M,) float64 shares in [0, 1].
+    """
     h, cos_h = _half_vector_quadrature(alpha)
     out = np.empty(len(mu))
     for i, m in enumerate(np.asarray(mu, dtype=np.float64)):
@@ -529,11 +1098,39 @@ class Plastic(Coat):
         return self._transmittance[i] * (1 - t) + self._transmittance[i + 1] * t
 
     def eval(self, wi, wo, n):
+        """f_r = f_GGX + albedo / (1 − R_int) · t(μ_i) t(μ_o) / (π η²), μ = n·w; 0 below the surface.
+
+        t is tabulated at 64 μ and read linearly, as Mitsuba does. RGB, sr⁻¹.
+
+        Parameters
+        ----------
+        wi : numpy.ndarray
+            (..., 3) unit directions toward the light; μ_i = n·wi.
+        wo : numpy.ndarray
+            (..., 3) unit directions toward the eye; μ_o = n·wo.
+        n : numpy.ndarray
+            (..., 3) unit normals of the interface and the base; the three arrays in one frame, broadcasting together.
+
+        Returns
+        -------
+        numpy.ndarray
+            (..., 3) float64 f_r: the interface's reflection plus the diffuse part.
+        """
         cos_i, cos_o = _dot(n, wi), _dot(n, wo)
         base = np.where(_above(wi, wo, n), self._through_coat(cos_i) * self._through_coat(cos_o), 0.0)
         return self._coat.eval(wi, wo, n) + base[..., None] * self._diffuse
 
     def kernel(self):
+        """``PLASTIC`` with [α, d_r, d_g, d_b], d = albedo / ((1 − R_int) π η²), and a table of F and t(μ).
+
+        Column 0 of the table is the dielectric's Fresnel term F, column 1 the interface's transmittance t(μ), both at
+        the cosines of :func:`fresnel_table`.
+
+        Returns
+        -------
+        tuple of (int, numpy.ndarray, numpy.ndarray)
+            ``PLASTIC``; (4,) float64 parameters; the (FRESNEL_STEPS + 1, 3) float64 table.
+        """
         table = fresnel_table(self._coat.fresnel)
         table[:, 1] = self._through_coat(np.linspace(0.0, 1.0, len(table)))  # column 0: F; column 1: t(μ)
         return PLASTIC, np.array([self.alpha, *self._diffuse]), table
@@ -546,8 +1143,20 @@ _NO_FRESNEL = np.ones((2, 3))
 
 
 def fresnel_table(fresnel) -> np.ndarray:
-    """F(cos) RGB at cos = i / FRESNEL_STEPS, i = 0 … FRESNEL_STEPS, from the exact formula (read linearly by the
-    compiled sums, so the Fresnel formulas exist once, here in numpy)."""
+    """F(cos) RGB at cos = i / FRESNEL_STEPS, i = 0 … FRESNEL_STEPS, from the exact formula.
+
+    The compiled sums read it linearly, so the Fresnel formulas exist once, here in numpy.
+
+    Parameters
+    ----------
+    fresnel : Schlick or Dielectric or Conductor
+        The Fresnel term: called with an array of cosines, it returns their (..., 3) RGB reflectance.
+
+    Returns
+    -------
+    numpy.ndarray
+        (FRESNEL_STEPS + 1, 3) C-contiguous float64 reflectances.
+    """
     return np.ascontiguousarray(fresnel(np.linspace(0.0, 1.0, FRESNEL_STEPS + 1)), dtype=np.float64)
 
 
@@ -576,9 +1185,31 @@ def _view_term(model, p, co):  # pragma: no cover - compiled
 
 @njit(cache=True, inline="always")
 def brdf_times_cosine(model, p, table, i0, i1, i2, o0, o1, o2, n0, n1, n2, view_term, out):  # pragma: no cover
-    """out[:] = f_r(wi, wo; n) · (n·wi) for one pair, the model numbered ``model`` with parameters ``p`` (the
-    classes' ``kernel()``); 0 below the surface. The same formulas as the classes' ``eval``, tested equal.
-    ``view_term`` is :func:`_view_term` of n·wo (the part that depends on the view only, made once per point)."""
+    """out[:] = f_r(wi, wo; n) · (n·wi) for one pair, the model numbered ``model`` with parameters ``p``.
+
+    ``model``, ``p`` and ``table`` are the classes' ``kernel()``; 0 below the surface. The same formulas as the
+    classes' ``eval``, tested equal. ``view_term`` is :func:`_view_term` of n·wo (the part that depends on the view
+    only, made once per point).
+
+    Parameters
+    ----------
+    model : int
+        The model number, ``LAMBERT`` … ``PLASTIC``.
+    p : numpy.ndarray
+        The model's float64 parameters.
+    table : numpy.ndarray
+        (M, 3) float64 Fresnel table (for ``PLASTIC``: column 0 F, column 1 t(μ)).
+    i0, i1, i2 : float
+        wi, unit, toward the light.
+    o0, o1, o2 : float
+        wo, unit, toward the eye.
+    n0, n1, n2 : float
+        The unit normal; wi, wo and n in one frame.
+    view_term : float
+        :func:`_view_term` of this model at n·wo.
+    out : numpy.ndarray
+        (3,) float64, overwritten with f_r · (n·wi) in RGB.
+    """
     ci, co = n0 * i0 + n1 * i1 + n2 * i2, n0 * o0 + n1 * o1 + n2 * o2
     if ci <= 0.0 or co <= 0.0:
         out[0] = out[1] = out[2] = 0.0
@@ -630,7 +1261,24 @@ def _eval_cosine_many(model, p, table, wi, wo, n, out):  # pragma: no cover - co
 
 
 def compiled_eval_cosine(brdf: BRDF, wi: np.ndarray, wo: np.ndarray, n: np.ndarray) -> np.ndarray:
-    """f_r · (n·wi) by the compiled path, for (..., 3) arrays that broadcast (tests hold it to ``eval``)."""
+    """f_r · (n·wi) by the compiled path, for (..., 3) arrays that broadcast (tests hold it to ``eval``).
+
+    Parameters
+    ----------
+    brdf : BRDF
+        The BRDF, evaluated through its :meth:`~BRDF.kernel`.
+    wi : numpy.ndarray
+        (..., 3) unit directions toward the light.
+    wo : numpy.ndarray
+        (..., 3) unit directions toward the eye.
+    n : numpy.ndarray
+        (..., 3) unit normals; the three arrays in one frame, broadcasting together.
+
+    Returns
+    -------
+    numpy.ndarray
+        (M, 3) float64 f_r · (n·wi), the broadcast shape's leading dimensions flattened into M; 0 below the surface.
+    """
     wi, wo, n = (np.ascontiguousarray(a, dtype=np.float64).reshape(-1, 3) for a in np.broadcast_arrays(wi, wo, n))
     out = np.empty((len(wi), 3))
     _eval_cosine_many(*brdf.kernel(), wi, wo, n, out)
@@ -639,8 +1287,31 @@ def compiled_eval_cosine(brdf: BRDF, wi: np.ndarray, wo: np.ndarray, n: np.ndarr
 
 @njit(cache=True, parallel=True)
 def reflected_sums(model, p, table, normals, views, dirs, weighted, out):  # pragma: no cover - compiled
-    """out[t] = Σ_s f_r(d_s, v_t; n_t) (n_t·d_s)⁺ W_s for every point t: the reflected radiance of sources of
-    (RGB) weight W_s = L_s Δω_s in unit directions d_s, summed exactly — O(points × sources)."""
+    """out[t] = Σ_s f_r(d_s, v_t; n_t) (n_t·d_s)⁺ W_s for every point t, summed exactly — O(points × sources).
+
+    That is the reflected radiance at each point of sources of (RGB) weight W_s = L_s Δω_s in unit directions d_s;
+    sources below a point's surface (n_t·d_s ≤ 0) are skipped.
+
+    Parameters
+    ----------
+    model : int
+        The model number of ``brdf.kernel()``.
+    p : numpy.ndarray
+        The model's float64 parameters (``brdf.kernel()``).
+    table : numpy.ndarray
+        (M, 3) float64 Fresnel table (``brdf.kernel()``).
+    normals : numpy.ndarray
+        (T, 3) float64 unit normals n_t, one per point.
+    views : numpy.ndarray
+        (T, 3) float64 unit directions v_t from each point toward the eye.
+    dirs : numpy.ndarray
+        (S, 3) float64 unit directions d_s toward the sources; normals, views and dirs in one frame (the world frame in
+        :mod:`lightprobe.glossy.radiance`).
+    weighted : numpy.ndarray
+        (S, 3) float64 W_s = L_s Δω_s: radiance times solid angle (sr).
+    out : numpy.ndarray
+        (T, 3) float64, overwritten with the reflected radiance, in the units of L.
+    """
     for t in prange(normals.shape[0]):
         value = np.empty(3)
         acc0 = acc1 = acc2 = 0.0
@@ -660,9 +1331,27 @@ def reflected_sums(model, p, table, normals, views, dirs, weighted, out):  # pra
 
 # ---- estimates and names ----------------------------------------------------------------------------------------
 def directional_albedo(brdf: BRDF, cos_view: np.ndarray, samples: int = 4096, seed: int = 0) -> np.ndarray:
-    """ρ(wo) = ∫ f_r(wi, wo) (n·wi) dwi, RGB, at views with n·wo = ``cos_view`` (1-D), by importance sampling
-    the BRDF with ``samples`` stratified samples (a white furnace: the light reflected under a uniform sky of
-    radiance 1)."""
+    """ρ(wo) = ∫ f_r(wi, wo) (n·wi) dwi, RGB, at views with n·wo = ``cos_view``, by importance sampling the BRDF.
+
+    ``samples`` stratified samples of :meth:`BRDF.sample` per view (a white furnace: the light reflected under a
+    uniform sky of radiance 1). The normal is +z and the views lie in the x–z plane.
+
+    Parameters
+    ----------
+    brdf : BRDF
+        The BRDF.
+    cos_view : numpy.ndarray
+        (M,) cosines n·wo of the views, in [0, 1].
+    samples : int, default 4096
+        Samples per view, rounded up to a square: a ⌈√samples⌉² grid of strata, each jittered once.
+    seed : int, default 0
+        Seed of the jitter (:func:`numpy.random.default_rng`).
+
+    Returns
+    -------
+    numpy.ndarray
+        (M, 3) float64 albedo ρ per view.
+    """
     cos_view = np.asarray(cos_view, dtype=np.float64)
     n = np.array([0.0, 0.0, 1.0])
     wo = np.stack([np.sqrt(1 - cos_view ** 2), np.zeros_like(cos_view), cos_view], axis=-1)[:, None, :]
@@ -697,10 +1386,31 @@ def _triple(key: str, text: str):
 
 
 def parse_brdf(spec: str) -> BRDF:
-    """A BRDF from ``name:key=value,…`` — ``lambert``, ``phong:n=50``, ``blinn:n=50``, ``ggx:alpha=0.2,f0=0.04``,
-    ``ggx:alpha=0.2,conductor=gold`` or ``…,eta=0.2/0.4/1.4,k=4/2.4/1.6``, ``ggx:alpha=0.2,ior=1.5`` (exact
-    dielectric), ``coat:alpha=0.1,ior=1.5,albedo=0.5/0.1/0.1``, ``plastic:alpha=0.1,ior=1.49,albedo=0.5/0.1/0.1``
-    (Mitsuba's roughplastic). RGB values are one number or r/g/b."""
+    """A BRDF from the text ``name:key=value,…`` (what :meth:`BRDF.spec` writes).
+
+    For example ``lambert``, ``phong:n=50``, ``blinn:n=50``, ``ggx:alpha=0.2,f0=0.04``, ``ggx:alpha=0.2,conductor=gold``
+    or ``…,eta=0.2/0.4/1.4,k=4/2.4/1.6``, ``ggx:alpha=0.2,ior=1.5`` (exact dielectric),
+    ``coat:alpha=0.1,ior=1.5,albedo=0.5/0.1/0.1``, ``plastic:alpha=0.1,ior=1.49,albedo=0.5/0.1/0.1`` (Mitsuba's
+    roughplastic). RGB values are one number or r/g/b. A parameter left out takes its class's default (``ggx``:
+    α = 0.2 and f0 = 1, no Fresnel).
+
+    Parameters
+    ----------
+    spec : str
+        The text; spaces around it and around each ``key=value`` are ignored.
+
+    Returns
+    -------
+    BRDF
+        A :class:`Lambert`, :class:`Phong`, :class:`BlinnPhong`, :class:`GGX`, :class:`Coat` or :class:`Plastic`.
+
+    Raises
+    ------
+    lightprobe.util.errors.UsageError
+        An unknown name or conductor; a parameter that is not ``key=value``, given twice, not the model's, not a
+        finite number, or out of its range; an RGB value of other than one or three numbers; more than one Fresnel
+        term for ``ggx``, or one of ``eta`` and ``k`` without the other.
+    """
     name, _, rest = str(spec).strip().partition(":")
     if name not in BRDFS:
         raise UsageError(f"unknown BRDF {name!r}; known: {', '.join(BRDFS)}")

@@ -52,27 +52,71 @@ class PrefilteredCube:
 
     @property
     def size(self) -> int:
+        """The face size of level 0 (texels across, the ``size`` given to :func:`prefilter_cube`)."""
         return self.levels[0].shape[1]
 
 
 def babylon_alphas(size: int, lod_generation_scale: float = 0.8, lod_generation_offset: float = 0.0) -> list[float]:
-    """The α of each mip of a ``size`` cube as Babylon.js reads it (its shader: lod = log₂(size·α)·scale + offset,
-    the inverse of what its HDRFiltering writes: α_i = 2^((i − offset)/scale)/size, level 0 the mirror). Babylon's
-    own prefilter and ``.env`` files use scale 0.8; its glTF loader sets scale = (levels − 1)/log₂ size (1 for a
-    full chain)."""
+    """The α of each mip of a ``size`` cube as Babylon.js reads it; level 0 is the mirror (α = 0).
+
+    Babylon's shader picks lod = log₂(size·α)·scale + offset, the inverse of what its HDRFiltering writes:
+    α_i = 2^((i − offset)/scale)/size. Babylon's own prefilter and ``.env`` files use scale 0.8; its glTF loader sets
+    scale = (levels − 1)/log₂ size (1 for a full chain).
+
+    Parameters
+    ----------
+    size : int
+        Face size of level 0 in texels, a power of two.
+    lod_generation_scale : float, default 0.8
+        Babylon's ``lodGenerationScale``.
+    lod_generation_offset : float, default 0.0
+        Babylon's ``lodGenerationOffset``.
+
+    Returns
+    -------
+    list of float
+        log₂(size) + 1 values of α (= roughness²), one per level from ``size`` down to 1×1, the first 0.
+    """
     levels = int(math.log2(size)) + 1
     return [0.0] + [2.0 ** ((i - lod_generation_offset) / lod_generation_scale) / size for i in range(1, levels)]
 
 
 def ggx_d(cos_h: np.ndarray, alpha: float) -> np.ndarray:
-    """Normalised GGX (Trowbridge–Reitz) distribution D(h) for cos θ_h, ∫ D (n·h) dω_h = 1."""
+    """Normalised GGX (Trowbridge–Reitz) distribution D(h) for cos θ_h, ∫ D (n·h) dω_h = 1.
+
+    Unlike :func:`lightprobe.glossy.brdf.ggx_d`, it does not set D to 0 for cos θ_h ≤ 0: the callers pass half vectors
+    of the upper hemisphere.
+
+    Parameters
+    ----------
+    cos_h : numpy.ndarray
+        cos θ_h = n·h, any shape.
+    alpha : float
+        The GGX width α (α = roughness²), > 0.
+
+    Returns
+    -------
+    numpy.ndarray
+        D (sr⁻¹), the shape of ``cos_h``.
+    """
     a2 = alpha * alpha
     t = cos_h * cos_h * (a2 - 1) + 1
     return a2 / (np.pi * t * t)
 
 
 def hammersley(count: int) -> np.ndarray:
-    """``count`` points of the Hammersley set on [0, 1)²: (i/N, radical inverse of i in base 2)."""
+    """``count`` points of the Hammersley set on [0, 1)²: ((i + ½)/N, radical inverse of i in base 2).
+
+    Parameters
+    ----------
+    count : int
+        N, the number of points.
+
+    Returns
+    -------
+    numpy.ndarray
+        (N, 2) float64 points, i = 0 … N − 1 in order.
+    """
     i = np.arange(count, dtype=np.uint32)
     bits = i.copy()
     bits = ((bits << 16) | (bits >> 16)) & 0xFFFFFFFF
@@ -84,8 +128,21 @@ def hammersley(count: int) -> np.ndarray:
 
 
 def tangent_frames(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Two unit tangents (t, b) completing each unit normal n (..., 3) to a right-handed basis, without a branch
-    that flips at the equator (Duff et al. 2017)."""
+    """Two unit tangents (t, b) completing each unit normal n to a right-handed basis: t × b = n.
+
+    Without a branch that flips at the equator (Duff et al. 2017): the construction of
+    :func:`lightprobe.glossy.brdf.tangent_frame`, here giving the local frame of each lobe about its direction r.
+
+    Parameters
+    ----------
+    n : numpy.ndarray
+        (..., 3) unit vectors (the texel directions r in :func:`prefilter_cube`), in any frame.
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        t and b, each (..., 3) float64, perpendicular to n and to each other.
+    """
     sign = np.where(n[..., 2] >= 0, 1.0, -1.0)
     a = -1.0 / (sign + n[..., 2])
     b = n[..., 0] * n[..., 1] * a
@@ -95,7 +152,25 @@ def tangent_frames(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def ggx_half_vectors(alpha: float, count: int) -> tuple[np.ndarray, np.ndarray]:
-    """``count`` half vectors in the local frame (z = normal) distributed as D(h)(n·h), and their cos θ_h."""
+    """``count`` half vectors in the local frame (z = normal) distributed as D(h)(n·h), and their cos θ_h.
+
+    The :func:`hammersley` points mapped through the inverse CDF: cos θ_h = √((1 − ξ₀)/(1 + (α² − 1) ξ₀)), azimuth
+    2π ξ₁. Deterministic: the same α and count give the same vectors.
+
+    Parameters
+    ----------
+    alpha : float
+        The GGX width α (α = roughness²).
+    count : int
+        The number of half vectors.
+
+    Returns
+    -------
+    h : numpy.ndarray
+        (count, 3) float64 unit half vectors, z ≥ 0.
+    cos_h : numpy.ndarray
+        (count,) float64 their z, cos θ_h.
+    """
     xi = hammersley(count)
     cos_h = np.sqrt((1 - xi[:, 0]) / (1 + (alpha * alpha - 1) * xi[:, 0]))
     sin_h = np.sqrt(np.maximum(0.0, 1 - cos_h ** 2))
@@ -104,7 +179,25 @@ def ggx_half_vectors(alpha: float, count: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def box_pyramid(cube: EnvMap) -> list[EnvMap]:
-    """The box-filtered pyramid of a cube map, finest first (each level's ∫L dω is the same)."""
+    """The box-filtered pyramid of a cube map, finest first (each level's ∫L dω is the same).
+
+    Each level halves the faces (:func:`lightprobe.maps.resampling.resampler.box_reduce`) down to 1×1.
+
+    Parameters
+    ----------
+    cube : lightprobe.maps.EnvMap
+        A :data:`~lightprobe.maps.layouts.CUBE` map whose face size is a power of two.
+
+    Returns
+    -------
+    list of lightprobe.maps.EnvMap
+        ``cube`` itself, then each halving, log₂(size) + 1 maps in all.
+
+    Raises
+    ------
+    lightprobe.util.errors.LayoutError
+        When a halving meets an odd face size (the face size is not a power of two).
+    """
     levels = [cube]
     while levels[-1].grid[-1] > 1:
         levels.append(box_reduce(levels[-1]))
@@ -180,8 +273,20 @@ def _lobe_sums(r, d, omega, values, alpha, below=2.0) -> tuple[np.ndarray, np.nd
 
 
 def lobe_integral(alpha: float) -> float:
-    """W(α) = ∫ D_α(h) (r·l)⁺ dω_l, the normaliser of P_α (the same for every r): 1-D Gauss–Legendre quadrature in
-    the angle θ between r and l, on a grid fine near 0 where the lobe lives."""
+    """W(α) = ∫ D_α(h) (r·l)⁺ dω_l, the normaliser of P_α (the same for every r).
+
+    1-D Gauss–Legendre quadrature in the angle θ between r and l, on a grid fine near 0 where the lobe lives.
+
+    Parameters
+    ----------
+    alpha : float
+        The GGX width α (α = roughness²), > 0.
+
+    Returns
+    -------
+    float
+        W(α), dimensionless (D in sr⁻¹ times solid angle).
+    """
     x, w = np.polynomial.legendre.leggauss(64)
     edges = np.concatenate([[0.0], np.geomspace(max(alpha, 1e-6) * 1e-3, np.pi / 2, 48)])
     total = 0.0
@@ -193,11 +298,30 @@ def lobe_integral(alpha: float) -> float:
 
 
 def split_peaks(cube: EnvMap, count: int) -> tuple[EnvMap, np.ndarray, np.ndarray]:
-    """``cube`` = clipped + peaks: every channel clipped at the (count+1)-th largest pixel maximum, the excess kept
-    as at most ``count`` point sources (directions (m, 3), RGB power L·dω (m, 3)).
+    """``cube`` = clipped + peaks: the excess over a threshold kept as at most ``count`` point sources.
+
+    Every channel is clipped at the (count+1)-th largest pixel maximum; the excess is kept as point sources
+    (directions (m, 3), RGB power L·dω (m, 3)).
 
     The GGX tails reach far: 20° from a sun, a lobe of α = 0.04 still takes a third of its value from the sun, which
-    K importance samples hit too rarely. The peaks are summed exactly instead, the bounded rest sampled."""
+    K importance samples hit too rarely. The peaks are summed exactly instead, the bounded rest sampled.
+
+    Parameters
+    ----------
+    cube : lightprobe.maps.EnvMap
+        The map, radiance, world frame; any layout (in practice the working cube).
+    count : int
+        The most pixels taken as peaks; ≤ 0, or not fewer than the map's pixels, takes none.
+
+    Returns
+    -------
+    clipped : lightprobe.maps.EnvMap
+        The bounded rest, float32, in ``cube``'s layout (``cube`` itself when no peak is taken).
+    directions : numpy.ndarray
+        (m, 3) float64 unit directions of the peaks' pixel centres, world frame (m ≤ ``count``).
+    power : numpy.ndarray
+        (m, 3) float64 RGB power of each peak, the excess radiance times the pixel's solid angle (L·dω).
+    """
     data = cube.data.reshape(-1, 3).astype(np.float64)
     peak = data.max(axis=1)
     if count <= 0 or len(peak) <= count:
@@ -220,12 +344,40 @@ def _peak_sums(r: np.ndarray, directions: np.ndarray, power: np.ndarray, alpha: 
 
 def prefilter_cube(env: EnvMap, size: int, alphas: list[float] | None = None, frame: Frame = WORLD,
                    samples: int = DEFAULT_SAMPLES, peaks: int = DEFAULT_PEAKS) -> PrefilteredCube:
-    """The GGX mip chain of ``env`` (radiance): a cube of ``size`` (a power of two) and one level per halving down to
-    1×1, level i prefiltered with ``alphas[i]`` (default :func:`babylon_alphas`), in the directions of ``frame``.
+    """The GGX mip chain of ``env`` (radiance): a ``size`` cube and one level per halving down to 1×1.
 
-    The source is first resampled (energy-conserving) into a cube of ``size`` in ``frame`` (unless it is one
-    already); level 0 (α = 0) is that cube, the mirror image. The brightest ``peaks`` texels are summed exactly
-    (:func:`split_peaks`), the rest directly or with ``samples`` GGX samples per texel (see the module docstring)."""
+    Level i is prefiltered with ``alphas[i]`` (default :func:`babylon_alphas`), in the directions of ``frame``. The
+    source is first resampled (energy-conserving) into a cube of ``size`` in ``frame`` (unless it is one already);
+    level 0 (α = 0) is that cube, the mirror image. The brightest ``peaks`` texels are summed exactly
+    (:func:`split_peaks`), the rest directly or with ``samples`` GGX samples per texel (see the module docstring).
+
+    Parameters
+    ----------
+    env : lightprobe.maps.EnvMap
+        The environment, radiance, any layout, world frame.
+    size : int
+        Face size of level 0 in texels: a power of two, at most MAX_SIZE (1024).
+    alphas : list of float, optional
+        One α (= roughness², ≥ 0 and below 1000) per level, log₂(size) + 1 of them; α = 0 is the mirror (the source
+        cube box-reduced to the level's size). Default :func:`babylon_alphas` of ``size``.
+    frame : lightprobe.maps.frames.Frame, default WORLD
+        The frame of the cube's directions: texel direction d shows the world direction ``frame.to_world(d)``.
+    samples : int, default DEFAULT_SAMPLES (128)
+        GGX samples per texel on the levels estimated by filtered importance sampling.
+    peaks : int, default DEFAULT_PEAKS (1024)
+        The brightest texels summed exactly as point sources (:func:`split_peaks`).
+
+    Returns
+    -------
+    PrefilteredCube
+        ``levels[i]`` a (6, size >> i, size >> i, 3) float32 radiance cube (OpenGL face orientation), with
+        ``alphas`` and ``frame``.
+
+    Raises
+    ------
+    lightprobe.util.errors.UsageError
+        ``size`` not a power of two or above MAX_SIZE; ``alphas`` not one per level, or one outside [0, 1000).
+    """
     if size < 1 or size & (size - 1):
         raise UsageError(f"a prefiltered cube needs a power-of-two size, got {size}")
     if size > MAX_SIZE:
@@ -259,16 +411,43 @@ def prefilter_cube(env: EnvMap, size: int, alphas: list[float] | None = None, fr
 
 
 def prefilter_memory(size: int) -> int:
-    """Bytes :func:`prefilter_cube` needs at most for a ``size`` cube, beyond the map and the process: the float32
-    source, its clipped copy, pyramid and chain (about 60 bytes per texel), the sampled level 1's float64 working
-    vectors (about 24 of 3 × 8 bytes per texel) and 64 MiB for the compiled kernels' threads. Measured beyond a
-    plain ``export`` (190 MiB): +104 MiB at 256, +333 MiB at 512; this says 144 and 384."""
+    """Bytes :func:`prefilter_cube` needs at most for a ``size`` cube, beyond the map and the process.
+
+    The float32 source, its clipped copy, pyramid and chain (about 60 bytes per texel), the sampled level 1's float64
+    working vectors (about 24 of 3 × 8 bytes per texel) and 64 MiB for the compiled kernels' threads. Measured beyond a
+    plain ``export`` (190 MiB): +104 MiB at 256, +333 MiB at 512; this says 144 and 384.
+
+    Parameters
+    ----------
+    size : int
+        Face size of the chain's level 0, in texels.
+
+    Returns
+    -------
+    int
+        The estimate in bytes.
+    """
     texels = 6 * size * size
     return texels * 60 + (texels // 4) * 3 * 8 * 24 + (64 << 20)
 
 
 def box_reduce_to(cube: EnvMap, size: int) -> EnvMap:
-    """The cube box-reduced to faces of ``size`` (a power-of-two fraction of its own)."""
+    """The cube box-reduced to faces of ``size`` (a power-of-two fraction of its own).
+
+    Each halving keeps ∫L dω; a cube already at most ``size`` across is returned as it is.
+
+    Parameters
+    ----------
+    cube : lightprobe.maps.EnvMap
+        A cube map, radiance.
+    size : int
+        The face size wanted, in texels: the cube's own divided by a power of two.
+
+    Returns
+    -------
+    lightprobe.maps.EnvMap
+        The reduced cube (``cube`` itself when no halving is needed).
+    """
     while cube.grid[-1] > size:
         cube = box_reduce(cube)
     return cube

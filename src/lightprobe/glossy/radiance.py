@@ -1,4 +1,5 @@
-"""Reflected radiance and radiance environment maps for any isotropic BRDF (Cabral, Olano & Nemec 1999; docs/spec.md §4).
+"""Reflected radiance and radiance environment maps for any isotropic BRDF (Cabral, Olano & Nemec 1999;
+docs/spec.md §4).
 
 Quantity: **radiance** (the map's units): L_r(n; v) = ∫_{n·ω>0} f_r(ω, v; n) L(ω) (n·ω) dω, the light a surface of
 normal n sends toward the eye at v (both unit, world frame, leaving the surface).
@@ -12,9 +13,9 @@ coarse level (Lambert: 8² faces), sharp ones a fine one; accuracy against a bru
 full cube is measured in tests/test_radiance.py and the level used is stated with each map.
 
 A **radiance map** for one view v is a ``sphere``-layout image in the view's frame T = [right, up, v]: the texel of
-local normal n_local (docs/spec.md §2's n(x, y)) holds L_r(T n_local; v). As an :class:`~lightprobe.maps.EnvMap` its layout
-is :class:`~lightprobe.maps.layouts.Sphere` with camera axes T, whose texel direction is the mirror of v about that normal
-— so looking the map up at a surface's mirror direction reads that surface's reflected radiance.
+local normal n_local (docs/spec.md §2's n(x, y)) holds L_r(T n_local; v). As an :class:`~lightprobe.maps.EnvMap` its
+layout is :class:`~lightprobe.maps.layouts.Sphere` with camera axes T, whose texel direction is the mirror of v about
+that normal — so looking the map up at a surface's mirror direction reads that surface's reflected radiance.
 """
 
 from __future__ import annotations
@@ -51,8 +52,24 @@ class Lighting:
     smooth: EnvMap | None = None
 
     def level_for(self, brdf: BRDF, points: int) -> int:
-        """The index of the level :func:`reflected_radiance` sums for ``points`` points: the coarsest whose
-        texels (π/2 / face size across) resolve the lobe, or the finest the budget allows."""
+        """The index of the level :func:`reflected_radiance` sums for ``points`` points.
+
+        The coarsest level whose texels (π/2 / face size across) resolve the lobe — at most
+        ``brdf.lobe_width()`` / TEXELS_PER_LOBE (8) across — or, where points × texels would pass BUDGET (1.5e9
+        evaluations), the finest the budget allows.
+
+        Parameters
+        ----------
+        brdf : lightprobe.glossy.brdf.BRDF
+            The BRDF; its :meth:`~lightprobe.glossy.brdf.BRDF.lobe_width` sets the texel size wanted.
+        points : int
+            The number of (normal, view) pairs the sum is for.
+
+        Returns
+        -------
+        int
+            An index into ``levels``: 0 is the working cube, ``len(levels) - 1`` its 1×1 faces.
+        """
         wanted = len(self.levels) - 1
         while wanted > 0 and np.pi / 2 / self.levels[wanted].grid[-1] > brdf.lobe_width() / TEXELS_PER_LOBE:
             wanted -= 1
@@ -62,9 +79,30 @@ class Lighting:
 
 
 def prepare(env: EnvMap, size: int = WORKING_SIZE, peaks: int = PEAKS) -> Lighting:
-    """The :class:`Lighting` of ``env`` (radiance, world frame): resampled (energy-conserving) into a ``size`` cube,
-    split into ``peaks`` point sources and a bounded rest, and the rest's box-filtered pyramid; with the whole cube
-    at SMOOTH_SIZE."""
+    """The :class:`Lighting` of ``env`` (radiance, world frame), to compute any number of maps from.
+
+    ``env`` is resampled (energy-conserving) into a ``size`` cube, split into ``peaks`` point sources and a bounded
+    rest, and the rest's box-filtered pyramid made; with the whole cube at SMOOTH_SIZE.
+
+    Parameters
+    ----------
+    env : lightprobe.maps.EnvMap
+        The environment, radiance, any layout, world frame; taken as it is when already a cube of ``size``.
+    size : int, default WORKING_SIZE (128)
+        Face size of the working cube in texels, a power of two (the pyramid halves it down to 1×1).
+    peaks : int, default PEAKS (64)
+        The brightest texels taken out as point sources (:func:`lightprobe.glossy.prefilter.split_peaks`).
+
+    Returns
+    -------
+    Lighting
+        The pyramid (finest first), the peaks' directions and RGB power, and the smooth cube.
+
+    Raises
+    ------
+    lightprobe.util.errors.LayoutError
+        When ``size`` is not a power of two (a halving meets an odd face size).
+    """
     cube = env if env.layout == CUBE and env.grid[-1] == size else resample(env, CUBE, size)
     rest, directions, power = split_peaks(cube, peaks)
     return Lighting(tuple(box_pyramid(rest)), directions, power, _smooth_cube(cube))
@@ -80,9 +118,27 @@ def _smooth_cube(cube: EnvMap) -> EnvMap:
 
 
 def smooth_radiance(smooth: EnvMap, brdf: BRDF, normals: np.ndarray, views: np.ndarray) -> np.ndarray:
-    """L_r(n; v) (radiance, RGB, (N, 3)) of the environment ``smooth`` (any layout, radiance, world frame) at unit
-    ``normals`` (N, 3) seen from unit ``views`` (N, 3, or one (3,)), every texel summed exactly: no level choice,
-    no peaks — the smooth part of a radiance map that :mod:`lightprobe.glossy.rsibr` computes for each new view."""
+    """L_r(n; v) of the environment ``smooth`` with every texel summed exactly: no level choice, no peaks.
+
+    The smooth part of a radiance map that :mod:`lightprobe.glossy.rsibr` computes for each new view. Texels without
+    light are left out of the sum.
+
+    Parameters
+    ----------
+    smooth : lightprobe.maps.EnvMap
+        The environment, any layout, radiance, world frame (in practice :attr:`Lighting.smooth`).
+    brdf : lightprobe.glossy.brdf.BRDF
+        The BRDF, summed through its compiled kernel.
+    normals : numpy.ndarray
+        (N, 3) unit surface normals, world frame.
+    views : numpy.ndarray
+        (N, 3), or one (3,) for every point: unit directions toward the eye, world frame.
+
+    Returns
+    -------
+    numpy.ndarray
+        (N, 3) float64 reflected radiance, RGB, in the environment's units.
+    """
     normals = np.ascontiguousarray(np.asarray(normals, dtype=np.float64).reshape(-1, 3))
     views = np.ascontiguousarray(np.broadcast_to(np.asarray(views, dtype=np.float64), normals.shape))
     model, params, table = brdf.kernel()
@@ -102,9 +158,36 @@ def _sources(level: EnvMap) -> tuple[np.ndarray, np.ndarray]:
 
 def reflected_radiance(lighting: Lighting | EnvMap, brdf: BRDF, normals: np.ndarray, views: np.ndarray,
                        level: int | None = None) -> np.ndarray:
-    """L_r(n; v) (radiance, RGB, (N, 3)) at unit ``normals`` (N, 3) seen from unit ``views`` (N, 3, or one (3,):
-    the direction toward the eye), world frame — see the module docstring for the method. ``level`` overrides
-    :meth:`Lighting.level_for` (0: every texel of the working cube, the brute-force sum)."""
+    """L_r(n; v) (radiance, RGB) at unit ``normals`` seen from unit ``views``, world frame.
+
+    See the module docstring for the method: the texels of one level of the pyramid and the peaks, each summed exactly.
+    ``level`` overrides :meth:`Lighting.level_for` (0: every texel of the working cube, the brute-force sum).
+
+    Parameters
+    ----------
+    lighting : Lighting or lightprobe.maps.EnvMap
+        The prepared environment; an EnvMap (radiance, world frame) goes through :func:`prepare`, with its defaults,
+        at each call.
+    brdf : lightprobe.glossy.brdf.BRDF
+        The BRDF.
+    normals : numpy.ndarray
+        (N, 3) unit surface normals, world frame.
+    views : numpy.ndarray
+        (N, 3), or one (3,) for every point: the unit direction toward the eye, world frame.
+    level : int, optional
+        The pyramid level summed, from 0 to ``len(lighting.levels) - 1``; default :meth:`Lighting.level_for` of
+        ``brdf`` and N.
+
+    Returns
+    -------
+    numpy.ndarray
+        (N, 3) float64 reflected radiance, RGB, in the environment's units.
+
+    Raises
+    ------
+    lightprobe.util.errors.UsageError
+        ``level`` outside the pyramid.
+    """
     if isinstance(lighting, EnvMap):
         lighting = prepare(lighting)
     normals = np.ascontiguousarray(np.asarray(normals, dtype=np.float64).reshape(-1, 3))
@@ -126,8 +209,21 @@ def reflected_radiance(lighting: Lighting | EnvMap, brdf: BRDF, normals: np.ndar
 
 # ---- views and their frames -------------------------------------------------------------------------------------
 def view_frame(view: np.ndarray) -> np.ndarray:
-    """T = [right, up, v] (columns) for unit view direction v: up is world +Y made perpendicular to v, or world −Z
-    where v is within ~8° of ±Y (|v_y| > 0.99), so every view has one (docs/spec.md §4)."""
+    """T = [right, up, v] (columns) for the view direction v.
+
+    up is world +Y made perpendicular to v, or world −Z where v is within ~8° of ±Y (|v_y| > 0.99), so every view has
+    one (docs/spec.md §4).
+
+    Parameters
+    ----------
+    view : numpy.ndarray
+        (3,) direction toward the eye, world frame; normalised here.
+
+    Returns
+    -------
+    numpy.ndarray
+        (3, 3) float64 rotation whose columns are right, up and v, in the world frame.
+    """
     v = np.asarray(view, dtype=np.float64)
     v = v / np.linalg.norm(v)
     hint = np.array([0.0, 1.0, 0.0]) if abs(v[1]) <= 0.99 else np.array([0.0, 0.0, -1.0])
@@ -138,9 +234,33 @@ def view_frame(view: np.ndarray) -> np.ndarray:
 
 
 def radiance_map(lighting: Lighting | EnvMap, brdf: BRDF, view: np.ndarray, size: int = 256) -> EnvMap:
-    """The radiance map of ``brdf`` for one ``view`` (unit, toward the eye, world frame): a ``size``² sphere-layout
-    :class:`EnvMap` whose layout's camera axes are :func:`view_frame` (view); texel of local normal n_local holds
-    L_r(T n_local; v); 0 outside the disc."""
+    """The radiance map of ``brdf`` for one ``view`` (unit, toward the eye, world frame).
+
+    A ``size``² sphere-layout :class:`~lightprobe.maps.EnvMap` whose layout's camera axes are :func:`view_frame` (view);
+    texel of local normal n_local holds L_r(T n_local; v); 0 outside the disc.
+
+    Parameters
+    ----------
+    lighting : Lighting or lightprobe.maps.EnvMap
+        The prepared environment; an EnvMap (radiance, world frame) goes through :func:`prepare`, with its defaults,
+        first.
+    brdf : lightprobe.glossy.brdf.BRDF
+        The BRDF.
+    view : numpy.ndarray
+        (3,) direction toward the eye, world frame.
+    size : int, default 256
+        Texels across, from 2 to MAX_MAP_SIZE (2048).
+
+    Returns
+    -------
+    lightprobe.maps.EnvMap
+        (size, size, 3) float32 radiance, layout :class:`~lightprobe.maps.layouts.Sphere` (T).
+
+    Raises
+    ------
+    lightprobe.util.errors.UsageError
+        ``size`` outside [2, MAX_MAP_SIZE].
+    """
     if not 2 <= size <= MAX_MAP_SIZE:
         raise UsageError(f"radiance map size must be from 2 to {MAX_MAP_SIZE}, got {size}")
     frame = view_frame(view)
@@ -155,9 +275,21 @@ def radiance_map(lighting: Lighting | EnvMap, brdf: BRDF, view: np.ndarray, size
 
 
 def sphere_normals(size: int) -> np.ndarray:
-    """Local normals n = (x, y, √(1 − x² − y²)) at the texel centres of a ``size``² sphere map (x right, y up),
-    (size, size, 3). Centres beyond 1 − ½ texel of the centre are pulled in to that radius: on the rim itself n ⊥ v,
-    where every BRDF is 0 (the view is at the surface's horizon), which would ring the map with black texels."""
+    """Local normals n = (x, y, √(1 − x² − y²)) at the texel centres of a ``size``² sphere map (x right, y up).
+
+    Centres beyond 1 − ½ texel of the centre are pulled in to that radius: on the rim itself n ⊥ v, where every BRDF
+    is 0 (the view is at the surface's horizon), which would ring the map with black texels.
+
+    Parameters
+    ----------
+    size : int
+        Texels across the map.
+
+    Returns
+    -------
+    numpy.ndarray
+        (size, size, 3) float64 unit normals in the view's frame (z toward the eye); row 0 is the top (y near +1).
+    """
     c = (np.arange(size) + 0.5) / size
     x, y = np.meshgrid(2 * c - 1, 1 - 2 * c)
     r = np.sqrt(x * x + y * y)
@@ -168,15 +300,53 @@ def sphere_normals(size: int) -> np.ndarray:
 
 
 def check_views(count: int) -> int:
+    """``count`` when it is a number of views :func:`geodesic_views` makes: 12, 42 or 162.
+
+    Those are the icosahedron's vertices and those of its 1- and 2-fold geodesic subdivisions.
+
+    Parameters
+    ----------
+    count : int
+        The number of views asked for.
+
+    Returns
+    -------
+    int
+        ``count`` itself.
+
+    Raises
+    ------
+    lightprobe.util.errors.UsageError
+        Any other number.
+    """
     if count not in (12, 42, 162):
         raise UsageError(f"views must be 12, 42 or 162 (the icosahedron and its geodesic subdivisions), got {count}")
     return count
 
 
 def geodesic_views(count: int = 12) -> tuple[np.ndarray, np.ndarray]:
-    """The view directions (count, 3) — an icosahedron's 12 vertices, or those of its 1- or 2-fold geodesic
-    subdivision (42, 162), unit — and the triangles (faces, 3) of the view mesh, counter-clockwise seen from
-    outside."""
+    """The view directions of an icosahedron or its geodesic subdivision, and the triangles of the view mesh.
+
+    The views are an icosahedron's 12 vertices, or those of its 1- or 2-fold geodesic subdivision (42, 162), unit;
+    the triangles are counter-clockwise seen from outside.
+
+    Parameters
+    ----------
+    count : int, default 12
+        12, 42 or 162.
+
+    Returns
+    -------
+    views : numpy.ndarray
+        (count, 3) float64 unit view directions, world frame.
+    triangles : numpy.ndarray
+        (faces, 3) int64 indices into ``views``: 20, 80 or 320 faces.
+
+    Raises
+    ------
+    lightprobe.util.errors.UsageError
+        ``count`` not 12, 42 or 162.
+    """
     check_views(count)
     phi = (1 + math.sqrt(5)) / 2
     v = np.array([[-1, phi, 0], [1, phi, 0], [-1, -phi, 0], [1, -phi, 0], [0, -1, phi], [0, 1, phi],

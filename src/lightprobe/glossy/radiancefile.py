@@ -60,15 +60,48 @@ class RadianceSet:
 
     @property
     def size(self) -> int:
+        """Texels across each map (the maps are ``size``², all alike)."""
         return self.maps[0].data.shape[0]
 
 
 def radiance_set(lighting, brdf: BRDF, views: np.ndarray, triangles: np.ndarray | None, size: int,
                  method: dict | None = None, progress: str | None = None) -> RadianceSet:
-    """The set of ``brdf``'s radiance maps (:func:`lightprobe.glossy.radiance.radiance_map`, ``size``²) at unit ``views``
-    (N, 3) under ``lighting`` (a :class:`lightprobe.glossy.radiance.Lighting` or an EnvMap), with the frames
-    :func:`lightprobe.glossy.radiance.view_frame` gives them; ``triangles`` the view mesh, or None. ``progress``: a
-    progress bar's label."""
+    """The set of ``brdf``'s radiance maps at unit ``views`` under ``lighting``.
+
+    Each map is :func:`lightprobe.glossy.radiance.radiance_map` (``size``²), with the frame
+    :func:`lightprobe.glossy.radiance.view_frame` gives its view. The environment's smooth cube is kept only for a set
+    of views with triangles.
+
+    Parameters
+    ----------
+    lighting : lightprobe.glossy.radiance.Lighting or lightprobe.maps.EnvMap
+        The environment, radiance, world frame; an EnvMap goes through :func:`lightprobe.glossy.radiance.prepare`
+        (its defaults) once, not once per view.
+    brdf : lightprobe.glossy.brdf.BRDF
+        The BRDF of every map.
+    views : numpy.ndarray
+        (N, 3) unit view directions (toward the eye), world frame.
+    triangles : numpy.ndarray or None
+        (F, 3) indices into ``views``, counter-clockwise seen from outside
+        (:func:`lightprobe.glossy.radiance.geodesic_views`); None for a single view.
+    size : int
+        Texels across each map, from 2 to 2048.
+    method : dict, optional
+        How the maps were computed, kept as the manifest's ``method``; default ``{}``.
+    progress : str, optional
+        A progress bar's label; None shows no bar.
+
+    Returns
+    -------
+    RadianceSet
+        The maps (float32 radiance, sphere layouts of their view frames), views, frames, triangles, method and smooth
+        cube.
+
+    Raises
+    ------
+    lightprobe.util.errors.UsageError
+        ``size`` outside [2, 2048].
+    """
     from ..util.progress import track
     from .radiance import prepare, radiance_map, view_frame
 
@@ -82,7 +115,28 @@ def radiance_set(lighting, brdf: BRDF, views: np.ndarray, triangles: np.ndarray 
 
 
 def manifest(rset: RadianceSet, files: list[str], timings: dict | None = None, source: str | None = None) -> dict:
-    """The schema's object for a set whose maps are (to be) written as ``files``."""
+    """The schema's object for a set whose maps are (to be) written as ``files``.
+
+    Version 1 of ``lightprobe.glossy.radiance`` (the module docstring): frame ``world``, quantity ``radiance``,
+    layout ``sphere``; each view's ``direction``, ``up`` and ``frame`` T stored as rows [right], [up], [v]; the
+    ``triangles`` and the ``smooth`` cube's entry when the set has them.
+
+    Parameters
+    ----------
+    rset : RadianceSet
+        The set.
+    files : list of str
+        A file name per map, relative to the manifest's folder, in the order of ``rset.maps``.
+    timings : dict, optional
+        Seconds by step, kept as ``timings``; default ``{}``.
+    source : str, optional
+        Where the environment came from (its path), kept as ``source``; None is JSON null.
+
+    Returns
+    -------
+    dict
+        The manifest, ready for :func:`json.dumps`.
+    """
     views = [{"file": f, "direction": [float(x) for x in v], "up": [float(x) for x in t[:, 1]],
               "frame": [[float(x) for x in t[:, k]] for k in range(3)]}
              for f, v, t in zip(files, rset.views, rset.frames)]
@@ -98,9 +152,33 @@ def manifest(rset: RadianceSet, files: list[str], timings: dict | None = None, s
 
 def write_radiance_set(folder: str | os.PathLike, rset: RadianceSet, timings: dict | None = None,
                        source: str | None = None) -> Path:
-    """Write the set as ``folder`` (EXRs ``view_000.exr`` … and ``manifest.json``), atomically: into a temporary
-    folder beside it, renamed into place once complete (an existing set there is replaced; any other non-empty
-    folder is refused)."""
+    """Write the set as ``folder`` (EXRs ``view_000.exr`` … and ``manifest.json``), atomically.
+
+    It is written into a temporary folder beside it, renamed into place once complete (an existing set there is
+    replaced; any other non-empty folder is refused). The smooth cube, when the set has one, goes in as
+    ``smooth.exr``. An error on the way removes the temporary folder and puts the previous set back.
+
+    Parameters
+    ----------
+    folder : str or os.PathLike
+        The set's folder: new, empty, or holding a set (a ``manifest.json``).
+    rset : RadianceSet
+        The set.
+    timings : dict, optional
+        Seconds by step, as :func:`manifest` keeps them.
+    source : str, optional
+        Where the environment came from, as :func:`manifest` keeps it.
+
+    Returns
+    -------
+    pathlib.Path
+        ``folder``.
+
+    Raises
+    ------
+    lightprobe.util.errors.UsageError
+        ``folder`` exists and is not a radiance-map folder: a file, or a non-empty folder without ``manifest.json``.
+    """
     folder = Path(folder)
     if folder.exists() and (not folder.is_dir() or (any(folder.iterdir()) and not (folder / "manifest.json").is_file())):
         raise UsageError(f"{folder} exists and is not a radiance-map folder: give a new or empty folder")
@@ -129,9 +207,29 @@ def write_radiance_set(folder: str | os.PathLike, rset: RadianceSet, timings: di
 
 
 def read_radiance_set(folder: str | os.PathLike) -> RadianceSet:
-    """A set written by :func:`write_radiance_set` (or one map's ``OUT.json`` path), every field checked: a missing
-    or wrong-sized map, a frame that is not a rotation with v as its third column, or a bad triangle is one clear
-    :class:`~lightprobe.util.errors.InputError`."""
+    """A set written by :func:`write_radiance_set` (or one map's ``OUT.json`` path), every field checked.
+
+    A missing or wrong-sized map, a frame that is not a rotation with v as its third column, or a bad triangle is one
+    clear :class:`~lightprobe.util.errors.InputError`. Each frame read is snapped to the nearest rotation (JSON's
+    decimals leave it orthonormal to ~1e-16 only).
+
+    Parameters
+    ----------
+    folder : str or os.PathLike
+        The set's folder (its ``manifest.json`` is read), or the path of a single map's manifest.
+
+    Returns
+    -------
+    RadianceSet
+        The maps as float32 radiance in sphere layouts of their frames (RGB of each EXR), the unit views (N, 3),
+        frames (N, 3, 3), triangles (int64) or None, method, and the smooth cube or None.
+
+    Raises
+    ------
+    lightprobe.util.errors.InputError
+        No manifest; not JSON, not this format or version, or over MAX_BYTES; any field wrong; a map missing or not
+        ``size``² (the smooth cube: not a 6N × N strip of finite, non-negative radiance).
+    """
     from ..maps.images import read_image
 
     path = Path(folder)

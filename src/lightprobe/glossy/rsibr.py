@@ -52,23 +52,81 @@ RHO = math.sqrt(2.0)  # the hemisphere's radius in the Lambert azimuthal equal-a
 
 # ---- warps: texel (x, y) on the sphere map's disc ↔ local direction -------------------------------------------
 def g_normal(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """The local normal of the sphere-map point (x, y) (x right, y up, in [−1, 1]): (x, y, √(1 − x² − y²))."""
+    """The local normal of the sphere-map point (x, y) (x right, y up, in [−1, 1]): (x, y, √(1 − x² − y²)).
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        Horizontal coordinates on the map's disc, right positive, in [−1, 1].
+    y : numpy.ndarray
+        Vertical coordinates, up positive, in [−1, 1], broadcasting with ``x``.
+
+    Returns
+    -------
+    numpy.ndarray
+        (..., 3) float64 normals in the view's frame (z toward the eye), unit on the disc; off it z is 0.
+    """
     return np.stack([x, y, np.sqrt(np.clip(1 - x * x - y * y, 0.0, None))], axis=-1)
 
 
 def g_normal_inverse(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The texture coordinates (s, t) in [0, 1] of local normal n: (n_x/2 + ½, n_y/2 + ½) (t up)."""
+    """The texture coordinates (s, t) in [0, 1] of local normal n: (n_x/2 + ½, n_y/2 + ½) (t up).
+
+    Parameters
+    ----------
+    n : numpy.ndarray
+        (..., 3) unit normals in the view's frame (z toward the eye); only x and y are read.
+
+    Returns
+    -------
+    s : numpy.ndarray
+        (...) float64, 0 at the map's left edge, 1 at its right.
+    t : numpy.ndarray
+        (...) float64, 0 at the map's bottom edge, 1 at its top.
+    """
     return n[..., 0] / 2 + 0.5, n[..., 1] / 2 + 0.5
 
 
 def g_mirror(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """The local mirror direction of the sphere-map point (x, y): (2xz, 2yz, 2z² − 1), z = √(1 − x² − y²)."""
+    """The local mirror direction of the sphere-map point (x, y): (2xz, 2yz, 2z² − 1), z = √(1 − x² − y²).
+
+    That is the mirror of the view (+z) about the point's normal :func:`g_normal`: the centre reflects back toward
+    the eye, the rim to −z.
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        The points' horizontal coordinates, as :func:`g_normal` takes them.
+    y : numpy.ndarray
+        Their vertical coordinates (up positive), broadcasting with ``x``.
+
+    Returns
+    -------
+    numpy.ndarray
+        (..., 3) float64 unit mirror directions in the view's frame.
+    """
     z = np.sqrt(np.clip(1 - x * x - y * y, 0.0, None))
     return np.stack([2 * x * z, 2 * y * z, 2 * z * z - 1], axis=-1)
 
 
 def g_mirror_inverse(r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The texture coordinates of local mirror direction r: g_normal⁻¹((r_x, r_y, r_z + 1) / |…|)."""
+    """The texture coordinates of local mirror direction r: g_normal⁻¹((r_x, r_y, r_z + 1) / |…|).
+
+    The normal halfway between r and the view (+z) gives the texel; r = −z, the rim's single direction, has none
+    and reads (½, ½).
+
+    Parameters
+    ----------
+    r : numpy.ndarray
+        (..., 3) unit mirror directions in the view's frame (z toward the eye).
+
+    Returns
+    -------
+    s : numpy.ndarray
+        (...) float64 in [0, 1], rightward.
+    t : numpy.ndarray
+        (...) float64 in [0, 1], upward.
+    """
     h = r + np.array([0.0, 0.0, 1.0])
     return g_normal_inverse(h / np.maximum(np.linalg.norm(h, axis=-1, keepdims=True), 1e-300))
 
@@ -83,18 +141,63 @@ def _excess(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
 
 
 def blend_weights(views: np.ndarray, triangles: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The three source views (indices) around unit v and their spherical barycentric weights: vertex i weighs the
-    area of the triangle v makes with the other two, over the whole triangle's. ≥ 0, summing to 1."""
+    """The three source views (indices) around unit v and their spherical barycentric weights.
+
+    Vertex i weighs the area of the triangle v makes with the other two, over the whole triangle's: ≥ 0, summing to 1.
+
+    Parameters
+    ----------
+    views : numpy.ndarray
+        (N, 3) unit source view directions, world frame (a set's ``views``).
+    triangles : numpy.ndarray
+        (F, 3) indices into ``views``: the view mesh, counter-clockwise seen from outside.
+    v : numpy.ndarray
+        (3,) unit view direction, world frame.
+
+    Returns
+    -------
+    sources : numpy.ndarray
+        (3,) indices into ``views``: the vertices of v's triangle.
+    weights : numpy.ndarray
+        (3,) float64 weights of those sources, in the same order.
+    """
     sources, weights = blend_weights_many(views, triangles, np.asarray(v, dtype=np.float64)[None, :])
     return sources[0], weights[0]
 
 
 def synthesize(rset: RadianceSet, view: np.ndarray, warp: str | None = None, size: int | None = None,
                smooth: bool = True) -> EnvMap:
-    """The radiance map for unit ``view`` (world, toward the eye) blended from ``rset``'s three maps around it,
-    warped through ``warp`` (``normal`` or ``mirror``; default the BRDF's central direction). ``smooth``: sum the
+    """The radiance map for unit ``view`` (world, toward the eye) blended from ``rset``'s three maps around it.
+
+    Warped through ``warp`` (``normal`` or ``mirror``; default the BRDF's central direction). ``smooth``: sum the
     smooth part exactly and warp only the rest (the module docstring) where :func:`sums_smooth_part` says so; False
-    warps the whole maps as the paper does. A view equal to a source view returns that source map (a copy)."""
+    warps the whole maps as the paper does. A view equal to a source view returns that source map (a copy) when
+    ``size`` is the set's.
+
+    Parameters
+    ----------
+    rset : lightprobe.glossy.radiancefile.RadianceSet
+        A set of views with its triangles (not a single map).
+    view : numpy.ndarray
+        (3,) direction toward the eye, world frame; normalised here.
+    warp : str, optional
+        ``"normal"`` or ``"mirror"``; default ``rset.brdf.central``.
+    size : int, optional
+        Texels across the new map; default the set's size.
+    smooth : bool, default True
+        Sum the smooth part exactly where :func:`sums_smooth_part` allows; False: the paper's synthesis.
+
+    Returns
+    -------
+    lightprobe.maps.EnvMap
+        (size, size, 3) float32 radiance, layout :class:`~lightprobe.maps.layouts.Sphere` of
+        :func:`lightprobe.glossy.radiance.view_frame` (view); 0 outside the disc.
+
+    Raises
+    ------
+    lightprobe.util.errors.UsageError
+        A set without triangles, or a ``warp`` other than ``normal`` and ``mirror``.
+    """
     if rset.triangles is None:
         raise UsageError("synthesis needs a set of views with its triangles (lightprobe radiance --views N)")
     warp = warp or rset.brdf.central
@@ -126,9 +229,27 @@ def synthesize(rset: RadianceSet, view: np.ndarray, warp: str | None = None, siz
 
 
 def blend_weights_many(views: np.ndarray, triangles: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`blend_weights` for many unit views (P, 3) at once: source indices (P, 3) and weights (P, 3). Each
-    view's triangle is the one whose three triple products [v_i, v_{i+1}, v] are all ≥ 0 — the one with the largest
-    smallest product, so a view on an edge or a vertex picks one deterministically."""
+    """:func:`blend_weights` for many unit views at once: source indices and weights, a row per view.
+
+    Each view's triangle is the one whose three triple products [v_i, v_{i+1}, v] are all ≥ 0 — the one with the
+    largest smallest product, so a view on an edge or a vertex picks one deterministically.
+
+    Parameters
+    ----------
+    views : numpy.ndarray
+        (N, 3) unit source view directions, world frame.
+    triangles : numpy.ndarray
+        (F, 3) indices into ``views``, counter-clockwise seen from outside.
+    v : numpy.ndarray
+        (P, 3) unit view directions, world frame.
+
+    Returns
+    -------
+    sources : numpy.ndarray
+        (P, 3) indices into ``views``, each row a triangle of ``triangles``.
+    weights : numpy.ndarray
+        (P, 3) float64 spherical barycentric weights, ≥ 0, each row summing to 1.
+    """
     a, b, c = views[triangles[:, 0]], views[triangles[:, 1]], views[triangles[:, 2]]
     products = np.minimum(np.minimum(v @ np.cross(a, b).T, v @ np.cross(b, c).T), v @ np.cross(c, a).T)
     tri = triangles[np.argmax(products, axis=1)]
@@ -139,10 +260,35 @@ def blend_weights_many(views: np.ndarray, triangles: np.ndarray, v: np.ndarray) 
 
 def reflected_by_view(rset: RadianceSet, normals: np.ndarray, views: np.ndarray, warp: str | None = None,
                       smooth: bool = True) -> np.ndarray:
-    """RS-IBR per point (beyond the paper's one map per frame): each point's reflected radiance (N, 3) for its own
-    unit ``views`` (N, 3), blended from the three source maps around that view, through the warp's central
-    direction of its normal (the normal, or the mirror of its view). Radiance, world frame. ``smooth`` as in
-    :func:`synthesize`, the smooth part summed exactly at each point's own normal and view."""
+    """RS-IBR per point: each point's reflected radiance for its own view.
+
+    Beyond the paper's one map per frame: each point's value is blended from the three source maps around its own
+    view, through the warp's central direction of its normal (the normal, or the mirror of its view). Radiance, world
+    frame. ``smooth`` as in :func:`synthesize`, the smooth part summed exactly at each point's own normal and view.
+
+    Parameters
+    ----------
+    rset : lightprobe.glossy.radiancefile.RadianceSet
+        A set of views with its triangles.
+    normals : numpy.ndarray
+        (N, 3) unit surface normals, world frame.
+    views : numpy.ndarray
+        (N, 3), or one (3,) for every point: unit directions toward the eye, world frame.
+    warp : str, optional
+        ``"normal"`` or ``"mirror"``; default ``rset.brdf.central``.
+    smooth : bool, default True
+        Sum the smooth part exactly where :func:`sums_smooth_part` allows; False: warp the whole maps.
+
+    Returns
+    -------
+    numpy.ndarray
+        (N, 3) float64 reflected radiance, RGB, in the maps' units.
+
+    Raises
+    ------
+    lightprobe.util.errors.UsageError
+        A set without triangles.
+    """
     if rset.triangles is None:
         raise UsageError("RS-IBR needs a set of views with its triangles")
     warp = warp or rset.brdf.central
@@ -163,10 +309,22 @@ def reflected_by_view(rset: RadianceSet, normals: np.ndarray, views: np.ndarray,
 
 # ---- the smooth part: tabulated over each view's hemisphere of local normals ---------------------------------------
 def sums_smooth_part(rset: RadianceSet) -> bool:
-    """Whether synthesis from ``rset`` sums the smooth part exactly (the default): where the set holds its smooth
-    cube and the BRDF's lobe is at least SMOOTH_MIN_LOBE wide. A narrower lobe resolves the cube's 5.6° texels
-    as separate highlights, so S is no longer smooth, its table cannot follow it, and the correction adds more
-    error than it takes away (measured: GGX α = 0.05, lobe 5.7°: 15 % → 22 % at 12 views)."""
+    """Whether synthesis from ``rset`` sums the smooth part exactly (the default).
+
+    It does where the set holds its smooth cube and the BRDF's lobe is at least SMOOTH_MIN_LOBE wide. A narrower lobe
+    resolves the cube's 5.6° texels as separate highlights, so S is no longer smooth, its table cannot follow it, and
+    the correction adds more error than it takes away (measured: GGX α = 0.05, lobe 5.7°: 15 % → 22 % at 12 views).
+
+    Parameters
+    ----------
+    rset : lightprobe.glossy.radiancefile.RadianceSet
+        The set; its ``smooth`` cube and its BRDF's lobe width decide.
+
+    Returns
+    -------
+    bool
+        True when :func:`synthesize` and :func:`reflected_by_view` with ``smooth=True`` sum the smooth part.
+    """
     return rset.smooth is not None and rset.brdf.lobe_width() >= SMOOTH_MIN_LOBE
 
 
@@ -185,9 +343,25 @@ def _table_normals() -> np.ndarray:
 
 
 def smooth_table(smooth: EnvMap, brdf, frame: np.ndarray) -> np.ndarray:
-    """S(T n_local; v) for the view of ``frame`` T (columns right, up, v) at the table's local normals
-    (:func:`_table_normals`): (TABLE_SIZE, TABLE_SIZE, 3) radiance, from
-    :func:`lightprobe.glossy.radiance.smooth_radiance` of ``smooth`` (world frame)."""
+    """S(T n_local; v) for the view of ``frame`` T (columns right, up, v) at the table's local normals.
+
+    The local normals are :func:`_table_normals`'s, a TABLE_SIZE² equal-area grid over the view's hemisphere; S is
+    :func:`lightprobe.glossy.radiance.smooth_radiance` of ``smooth`` (world frame).
+
+    Parameters
+    ----------
+    smooth : lightprobe.maps.EnvMap
+        The environment's smooth cube, radiance, world frame (a set's ``smooth``).
+    brdf : lightprobe.glossy.brdf.BRDF
+        The set's BRDF.
+    frame : numpy.ndarray
+        (3, 3) rotation T, columns right, up and the view v (:func:`lightprobe.glossy.radiance.view_frame`).
+
+    Returns
+    -------
+    numpy.ndarray
+        (TABLE_SIZE, TABLE_SIZE, 3) float64 radiance.
+    """
     normals = _table_normals().reshape(-1, 3) @ np.asarray(frame).T
     return smooth_radiance(smooth, brdf, normals, frame[:, 2]).reshape(TABLE_SIZE, TABLE_SIZE, 3)
 
@@ -224,8 +398,23 @@ def _residuals(rset: RadianceSet, needed, exact: bool = False) -> np.ndarray:
 
 
 def map_at_normals(rmap: EnvMap, normals: np.ndarray) -> np.ndarray:
-    """A radiance map read at world ``normals`` (N, 3): the texel of local normal Tᵀ n (docs/spec.md §4's normal-indexed
-    lookup; normals facing away from the map's view are read at its rim), bilinear. Radiance."""
+    """A radiance map read at world ``normals``: the texel of local normal Tᵀ n, bilinear.
+
+    docs/spec.md §4's normal-indexed lookup; normals facing away from the map's view are read at its rim.
+
+    Parameters
+    ----------
+    rmap : lightprobe.maps.EnvMap
+        A radiance map: sphere layout whose camera axes are its view's frame T
+        (:func:`lightprobe.glossy.radiance.radiance_map`).
+    normals : numpy.ndarray
+        (N, 3) unit normals, world frame.
+
+    Returns
+    -------
+    numpy.ndarray
+        (N, 3) float64 radiance, in the map's units.
+    """
     local = np.asarray(normals, dtype=np.float64).reshape(-1, 3) @ rmap.layout.camera_axes
     out = np.empty((len(local), 3))
     size = rmap.data.shape[0]
