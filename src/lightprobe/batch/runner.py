@@ -245,7 +245,8 @@ class DaskPool:
         try:
             from dask.distributed import Client, LocalCluster
         except ImportError:
-            raise UsageError("--scheduler and --dask-local need dask.distributed: run 'bash setup.sh'") from None
+            raise UsageError("--scheduler and --dask-local need the optional 'distributed' package: "
+                             "pip install 'lightprobe[batch]'") from None
         import logging
 
         self.cluster = None

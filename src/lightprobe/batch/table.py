@@ -40,7 +40,8 @@ def _pa():
         import pyarrow as pa
         import pyarrow.parquet as pq
     except ImportError:
-        raise UsageError("lightprobe batch needs pyarrow: run 'bash setup.sh'") from None
+        raise UsageError("'lightprobe batch' needs the optional 'pyarrow' package: "
+                         "pip install 'lightprobe[batch]'") from None
     return pa, pq
 
 
