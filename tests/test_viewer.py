@@ -397,8 +397,8 @@ def test_a_person_can_drag_switch_and_slide(page):
     p = page.page
     canvas = p.locator("#canvas")
 
-    def shot():
-        p.wait_for_timeout(200)
+    def shot():  # once the frame the last event asked for is drawn (the page draws on demand)
+        p.wait_for_function("!window.lightprobe.viewer.pending", timeout=120000)
         return canvas.screenshot()
 
     p.select_option("#method", "sh")
