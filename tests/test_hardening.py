@@ -13,7 +13,6 @@ import resource
 import signal
 import subprocess
 import sys
-import time
 from fractions import Fraction
 from math import comb, pi
 from pathlib import Path
@@ -22,7 +21,7 @@ import numpy as np
 import pytest
 
 from conftest import shared
-from lightprobe.cli import build_parser, main
+from lightprobe.cli import build_parser, command_module
 from lightprobe.cli.common import ImageSize, Number, NumberList
 from lightprobe.maps import EnvMap, check_size, read_envmap
 from lightprobe.util.errors import BudgetError, LightprobeError, UsageError
@@ -275,7 +274,8 @@ def test_sigterm_and_sighup_remove_the_temporary_file(tmp_path):
               "    with atomic_path(sys.argv[1]) as tmp:\n"
               "        tmp.write_bytes(b'half')\n"
               "        print('ready', flush=True)\n"
-              "        time.sleep(60)\n"
+              "        while True:\n"
+              "            time.sleep(60)\n"
               "except Terminated as e:\n"
               "    sys.exit(128 + e.signum)\n")
     for sig in (signal.SIGTERM, signal.SIGHUP):
@@ -331,12 +331,13 @@ def test_the_walk_covers_every_numeric_option():
 
 
 @pytest.mark.parametrize("command,flag,bad", NUMERIC_CASES)
-def test_every_numeric_option_refuses_out_of_range(tmp_path, capsys, command, flag, bad):
+def test_every_numeric_option_refuses_out_of_range(tmp_path, capsys, monkeypatch, command, flag, bad):
     required = [a.format(probe=shared("ict_lowres/grace.hdr"), out=tmp_path / "o") for a in REQUIRED.get(command, [])]
-    t0 = time.perf_counter()
+    ran = []
+    monkeypatch.setattr(command_module(command), "run", ran.append)
     code, _, err = run(capsys, command, *required, f"{flag}={bad}")
     assert_clean_failure(code, err, flag)
-    assert time.perf_counter() - t0 < 5 and list(tmp_path.iterdir()) == []
+    assert not ran and list(tmp_path.iterdir()) == []  # refused before the command did anything
 
 
 def test_render_spp_range_depends_on_the_method(tmp_path, capsys):
@@ -406,20 +407,24 @@ def test_a_yaml_alias_bomb_is_refused_at_once_without_echoing_it(tmp_path):
     path = tmp_path / "bomb.yaml"
     path.write_text("\n".join(lines) + "\n")
     assert path.stat().st_size < 800
-    t0 = time.perf_counter()
     res = lightprobe("render", path, "-o", tmp_path / "r.exr")
     clean_failure(res, "YAML aliases")
-    assert time.perf_counter() - t0 < 20 and len(res.stderr) < 300
+    assert len(res.stderr) < 300
 
 
-def test_the_triangle_limit_holds_for_the_whole_scene(tmp_path):
+def test_the_triangle_limit_holds_for_the_whole_scene(tmp_path, monkeypatch):
+    from lightprobe.render import scenefile
+
     text = "_s: &s {shape: sphere, radius: 0.1}\nmeshes: [" + ", ".join(["*s"] * 3000) + "]\n"
     (tmp_path / "many.yaml").write_text(text)
     assert (tmp_path / "many.yaml").stat().st_size < 13_000
-    t0 = time.perf_counter()
     res = lightprobe("render", tmp_path / "many.yaml", "-o", tmp_path / "r.exr", "--size", "8x8")
     clean_failure(res, "triangles", "LIGHTPROBE_MAX_TRIANGLES")
-    assert time.perf_counter() - t0 < 10  # counted before any sphere is built (it built 976 of them first, 25 s)
+    built = []
+    monkeypatch.setattr(scenefile, "sphere", lambda *args: built.append(args))
+    with pytest.raises(BudgetError, match="LIGHTPROBE_MAX_TRIANGLES"):
+        scenefile.load_scene(tmp_path / "many.yaml")
+    assert not built  # counted before any sphere is built (it built 976 of them first)
 
 
 def peak_of(*argv, env=None) -> tuple[subprocess.CompletedProcess, float]:
@@ -463,23 +468,15 @@ def test_the_hdr_reader_never_allocates_a_short_files_claimed_size(tmp_path):
     assert peak < 300  # MiB; 11000 × 12000 float RGB alone would be 1.5 GB
 
 
-def test_work_over_the_memory_budget_is_refused_before_it_starts(tmp_path):
+def test_work_over_the_memory_budget_is_refused_before_it_starts(tmp_path, tmp_path_factory):
+    scratch = tmp_path_factory.mktemp("tmpdir")  # the commands' TMPDIR: only what they leave is there
     for argv in (["convert", shared("ict_lowres/grace.hdr"), tmp_path / "c.exr", "--to", "latlong", "--size", 8192],
                  ["render", "-o", tmp_path / "r.exr", "--size", "4096x4096"],
                  ["render", "-o", tmp_path / "m.exr", "--size", "8192x8192", "-m", "reference"]):
-        t0 = time.perf_counter()
-        res = lightprobe(*argv, env={"LIGHTPROBE_MAX_MEMORY": "1G"})
+        res = lightprobe(*argv, env={"LIGHTPROBE_MAX_MEMORY": "1G", "TMPDIR": str(scratch)})
         clean_failure(res, "refusing", "memory")
-        assert time.perf_counter() - t0 < 30
     assert list(tmp_path.iterdir()) == []
-    import tempfile
-
-    mine = [p for p in Path(tempfile.gettempdir()).glob("lightprobe-mitsuba-*")]
-    from lightprobe.util.files import process_alive
-    from lightprobe.render.reference import SCENE_FOLDER
-
-    stale = [p for p in mine if SCENE_FOLDER.match(p.name) and not process_alive(int(SCENE_FOLDER.match(p.name)[1]))]
-    assert not stale
+    assert list(scratch.iterdir()) == []  # no Mitsuba scene folder left behind
 
 
 def test_the_mitsuba_folder_is_gone_once_the_scene_is_loaded(monkeypatch):
@@ -630,14 +627,35 @@ def test_the_sh_json_reader_refuses_what_is_not_the_schema():
 
 
 def test_demo_timings_are_warm(tmp_path, monkeypatch):
-    import lightprobe.report.demo as demo
+    """The timed projection runs kernels the warm-up already made: none is compiled or loaded from numba's cache
+    inside it (cold, a 1024×512 map's took 1327 ms instead of a few)."""
+    import lightprobe.demo as demo
+    from numba.core.dispatcher import Dispatcher
 
+    made, timed = [], []
+    compile_, project = Dispatcher.compile, demo.project
+
+    def compiling(self, sig):
+        before = len(self.overloads)
+        entry = compile_(self, sig)
+        if len(self.overloads) > before:
+            made.append(self.py_func.__name__)
+        return entry
+
+    def projecting(*args, **kwargs):
+        first = len(made)
+        result = project(*args, **kwargs)
+        timed.append(made[first:])
+        return result
+
+    monkeypatch.setattr(Dispatcher, "compile", compiling)
+    monkeypatch.setattr(demo, "project", projecting)
     monkeypatch.setattr(demo, "SECTIONS", [demo.section_sh])
     demo.run_demo(read_envmap(shared("polyhaven_1k/rooitou_park_1k.hdr")), tmp_path / "r")
     page = (tmp_path / "r" / "index.html").read_text()
     assert "compiling the numba kernels" in page
-    ms = float(re.search(r"SH projection, order 2</td><td>([\d.]+) ms", page).group(1))
-    assert ms < 200, ms  # warm: a 1024×512 map projects in a few ms (the cold figure was 1327 ms)
+    assert re.search(r"SH projection, order 2</td><td>[\d.]+ ms", page)
+    assert timed and not any(timed), timed
 
 
 def test_under_a_process_memory_cap_the_reference_is_refused_not_a_crash(tmp_path):

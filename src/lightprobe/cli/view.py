@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import signal
 import sys
 from pathlib import Path
 
@@ -56,16 +57,35 @@ def run(args) -> None:
         export_static(folder, args.export)
         print(f"wrote {args.export} (serve it with any static web server; open index.html through it)")
         return
-    server = ViewServer(folder, args.port)
-    print(f"lightprobe view: {server.url}  (Ctrl-C stops it)", flush=True)
-    if args.open:
-        import webbrowser
+    # Ctrl-C is how serving ends: once the URL can be seen it must end in "stopped" (0) whenever it lands — a
+    # KeyboardInterrupt raised between two statements (before the try, inside shutdown, in a print) would end the
+    # command as "interrupted" (130). So from before the server starts, SIGINT only sets a flag the wait polls; the
+    # handler takes no lock (it runs between any two bytecodes of this thread, which may hold that lock). Its first
+    # call sets SIGINT to SIG_IGN, left so until exit: a second Ctrl-C has nothing left to stop, and SIG_IGN needs
+    # no Python code to run, so it holds through the interpreter's exit too. A SIGINT the parent ignored (a
+    # background job) stays ignored. Ctrl-C during the bake above stays "interrupted" (bake() leaves no partial
+    # folder).
+    stop: list[int] = []
 
-        webbrowser.open(server.url)
+    def ctrl_c(signum, frame) -> None:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        stop.append(signum)
+
+    previous = signal.getsignal(signal.SIGINT)
+    if previous is not signal.SIG_IGN:
+        signal.signal(signal.SIGINT, ctrl_c)
     try:
-        server.wait()
-    except KeyboardInterrupt:
-        pass
+        server = ViewServer(folder, args.port)
+        try:
+            print(f"lightprobe view: {server.url}  (Ctrl-C stops it)", flush=True)
+            if args.open:
+                import webbrowser
+
+                webbrowser.open(server.url)
+            server.wait(lambda: bool(stop))
+        finally:
+            server.close()
+        print("lightprobe view: stopped", file=sys.stderr)
     finally:
-        server.close()
-    print("lightprobe view: stopped", file=sys.stderr)
+        if not stop and previous not in (signal.SIG_IGN, None):  # None: a handler not set from Python
+            signal.signal(signal.SIGINT, previous)

@@ -24,6 +24,7 @@ import os
 import re
 import shutil
 import threading
+from collections.abc import Callable
 from pathlib import Path
 from urllib.parse import unquote
 
@@ -246,10 +247,10 @@ class ViewServer:
         self._thread = threading.Thread(target=self.httpd.serve_forever, daemon=True)
         self._thread.start()
 
-    def wait(self) -> None:
-        """Block until the server stops (Ctrl-C raises KeyboardInterrupt here)."""
-        while self._thread.is_alive():
-            self._thread.join(0.5)
+    def wait(self, stop: Callable[[], bool] = lambda: False) -> None:
+        """Block until the server stops or ``stop()`` is true (asked every 0.1 s)."""
+        while self._thread.is_alive() and not stop():
+            self._thread.join(0.1)
 
     def close(self) -> None:
         """Stop serving and close the listening socket (what leaving a ``with`` block does)."""
