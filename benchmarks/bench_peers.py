@@ -34,7 +34,8 @@ import numpy as np
 
 from lightprobe.maps import EnvMap, Resampler, auto_samples, read_envmap, resample
 from lightprobe.maps.images import write_image
-from lightprobe.maps.layouts import CUBE, CUBE_FACE_ORDER, CUBE_FACES, LATLONG, _cube_texel_solid_angles
+from lightprobe.maps.cube_layouts import _cube_texel_solid_angles
+from lightprobe.maps.layouts import CUBE, CUBE_FACE_ORDER, CUBE_FACES, LATLONG
 from lightprobe.sh.basis import project
 
 

@@ -161,10 +161,10 @@ def test_a_mirror_balls_outer_rings_take_no_large_blend(size, target, out_size, 
 @pytest.mark.parametrize("source, size, target, out_size",
                          [("sphere", 128, "cube", 64), ("angular", 128, "latlong", 64)])
 def test_a_disc_sources_rim_slivers_count_by_their_share_of_the_sphere(source, size, target, out_size, monkeypatch):
-    """A pixel the rim barely cuts is read in proportion to its share (layouts._disc_certainty): a sun in the worst
+    """A pixel the rim barely cuts is read in proportion to its share (disc_layouts._disc_certainty): a sun in the worst
     one comes out within 2× its energy, where counted as a whole pixel it came out ~60–900× — the lookup's own
     doing, so measured before the flux correction."""
-    from lightprobe.maps import layouts as layouts_module
+    from lightprobe.maps import disc_layouts as layouts_module
 
     src = layout(source)
     grid = src.grid_shape(size)

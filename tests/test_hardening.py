@@ -428,7 +428,7 @@ def test_the_triangle_limit_holds_for_the_whole_scene(tmp_path, monkeypatch):
 
 
 def peak_of(*argv, env=None) -> tuple[subprocess.CompletedProcess, float]:
-    """Run the command and return it with its peak resident memory in MiB (lightprobe.peak.run_measured)."""
+    """Run the command and return it with its peak resident memory in MiB (lightprobe_engines.peak.run_measured)."""
     return run_measured([EXE, *argv], env={"LIGHTPROBE_PROGRESS": "0", **(env or {})}, timeout=300)
 
 
@@ -629,11 +629,12 @@ def test_the_sh_json_reader_refuses_what_is_not_the_schema():
 def test_demo_timings_are_warm(tmp_path, monkeypatch):
     """The timed projection runs kernels the warm-up already made: none is compiled or loaded from numba's cache
     inside it (cold, a 1024×512 map's took 1327 ms instead of a few)."""
-    import lightprobe.demo as demo
+    import lightprobe.report.demo as demo
+    import lightprobe.report.page as page
     from numba.core.dispatcher import Dispatcher
 
     made, timed = [], []
-    compile_, project = Dispatcher.compile, demo.project
+    compile_, project = Dispatcher.compile, page.project
 
     def compiling(self, sig):
         before = len(self.overloads)
@@ -649,7 +650,7 @@ def test_demo_timings_are_warm(tmp_path, monkeypatch):
         return result
 
     monkeypatch.setattr(Dispatcher, "compile", compiling)
-    monkeypatch.setattr(demo, "project", projecting)
+    monkeypatch.setattr(page, "project", projecting)  # Report.sh, the step the table times
     monkeypatch.setattr(demo, "SECTIONS", [demo.section_sh])
     demo.run_demo(read_envmap(shared("polyhaven_1k/rooitou_park_1k.hdr")), tmp_path / "r")
     page = (tmp_path / "r" / "index.html").read_text()

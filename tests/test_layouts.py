@@ -137,7 +137,7 @@ def test_cross_and_cube_hold_the_same_texels(cross, n):
 @pytest.mark.parametrize("cross", [CROSS, HCROSS], ids=["cross", "hcross"])
 @pytest.mark.parametrize("n", [1, 2, 7, 32])
 def test_each_tile_texel_shows_its_face_texels_direction(cross, n):
-    """to_cube turns each tile by a symmetry of the square found once at 3 texels (layouts._tile_turns): at every
+    """to_cube turns each tile by a symmetry of the square found once at 3 texels (cube_layouts._tile_turns): at every
     size each cube texel comes from the cross pixel of the same direction, and from_cube puts it back there."""
     grid = cross.grid_shape(n)
     np.testing.assert_allclose(cross.to_cube(cross.directions(grid)), CUBE.directions(CUBE.grid_shape(n)),
@@ -183,7 +183,7 @@ def test_a_cubes_corner_padding_holds_each_corner_texel_once(n):
     """Beyond each face corner (the vertex's missing fourth quadrant) the 2×2 padding holds the next face's corner
     block, each of the 24 × 4 corner-block texels exactly once, on the face next round the vertex; the rest of the
     border is the nearest texel, as before."""
-    from lightprobe.maps.layouts import PAD, _padding_index
+    from lightprobe.maps.layout_base import PAD, _padding_index
 
     cube = LAYOUTS["cube"]
     grid = cube.grid_shape(n)

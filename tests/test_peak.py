@@ -1,4 +1,4 @@
-"""lightprobe.peak: a command's own peak memory, measured from outside it."""
+"""lightprobe_engines.peak: a command's own peak memory, measured from outside it."""
 
 from __future__ import annotations
 

@@ -142,10 +142,10 @@ def test_a_lat_long_too_large_for_the_flux_correction_keeps_every_suns_energy_in
 
 
 def test_the_compiled_disc_area_is_the_layouts_one():
-    """fused._quadrant_area (one point, any radius, compiled) equals layouts._quarter_disc_area (arrays, the unit
+    """fused._quadrant_area (one point, any radius, compiled) equals disc_layouts._quarter_disc_area (arrays, the unit
     disc) scaled by r², and a pixel's area from it is its area on the disc."""
     from lightprobe.maps.resampling import fused
-    from lightprobe.maps.layouts import _quarter_disc_area
+    from lightprobe.maps.disc_layouts import _quarter_disc_area
 
     rng = np.random.default_rng(3)
     for x, y, r in zip(rng.uniform(-1.3, 1.3, 200), rng.uniform(-1.3, 1.3, 200), rng.uniform(0.2, 1.2, 200)):

@@ -248,7 +248,13 @@ class ViewServer:
         self._thread.start()
 
     def wait(self, stop: Callable[[], bool] = lambda: False) -> None:
-        """Block until the server stops or ``stop()`` is true (asked every 0.1 s)."""
+        """Block until the server stops or ``stop()`` is true (asked every 0.1 s).
+
+        Parameters
+        ----------
+        stop : callable
+            Asked every 0.1 s; True ends the wait (``lightprobe view`` passes its Ctrl-C flag). Default: never.
+        """
         while self._thread.is_alive() and not stop():
             self._thread.join(0.1)
 

@@ -34,7 +34,8 @@ from functools import lru_cache
 import numpy as np
 
 from ...util.jit import njit
-from ..layouts import CUBE, PAD, Cross, Layout, _padding_index
+from ..layout_base import _padding_index
+from ..layouts import CUBE, PAD, Cross, Layout
 from ..envmap import pixel_solid_angles
 from .pole_rows import bspline
 

@@ -34,7 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..layouts import CUBE, Layout, _padding_index
+from ..layout_base import _padding_index
+from ..layouts import CUBE, Layout
 
 MAX_WEIGHT = 0.95  # a pixel's weights are scaled down to this total where a flow through it would exceed it. Only
 #                   pixels by a rim direction need over 0.5 (a few dozen, within 18° of it): the source pixels a

@@ -936,7 +936,7 @@ def _arc_cuts(r, a0, a1, b0, b1, centre, lo, hi, cuts):  # pragma: no cover - co
 @njit(cache=True, inline="always", error_model="numpy")
 def _quadrant_area(x, y, r):  # pragma: no cover - compiled
     """Signed area of the rectangle between (0, 0) and (x, y) inside the disc of radius ``r`` round the origin: r² ×
-    :func:`lightprobe.maps.layouts._quarter_disc_area` at (x/r, y/r), written again for one point in compiled code."""
+    :func:`lightprobe.maps.disc_layouts._quarter_disc_area` at (x/r, y/r), written again for one point in compiled code."""
     a, b = min(abs(x) / r, 1.0), min(abs(y) / r, 1.0)
     x_star = math.sqrt(max(1.0 - b * b, 0.0))  # where the unit circle crosses height b
     lo = min(a, x_star)
