@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import atexit
 import os
+import re
 import signal
 import time
 from collections import deque
@@ -323,7 +324,8 @@ def check_out(out: Path, options: JobOptions, resume: bool, force: bool) -> None
     """Refuse an unusable ``--out`` before any work.
 
     Not a folder, not writable, a batch there without ``--resume``, or ``--resume`` on a batch of another lightprobe
-    version (unless ``force``) or other options. A folder with no batch may hold only ``parts`` and ``maps``.
+    version (unless ``force``) or other options. A folder is a batch folder only by its manifest (``batch.json`` of
+    format ``lightprobe.batch``): one without it must be empty, whatever it holds (``parts/`` or ``maps/`` included).
 
     Parameters
     ----------
@@ -348,7 +350,7 @@ def check_out(out: Path, options: JobOptions, resume: bool, force: bool) -> None
     wanted = manifest(options.as_dict())
     if existing is not None and not resume:
         raise UsageError(f"{out} holds a batch already: --resume to continue it, or give another --out")
-    if existing is None and out.is_dir() and any(p.name not in ("parts", "maps") for p in out.iterdir()):
+    if existing is None and out.is_dir() and any(out.iterdir()):
         raise UsageError(f"{out} is not empty and holds no batch: give a new or empty folder")
     if existing is not None:
         for key in ("version", "schema_version", "lightprobe"):
@@ -376,25 +378,40 @@ def _sweep(out: Path) -> None:
             stale.unlink(missing_ok=True)
 
 
+# What a worker writes in an artifact folder maps/<sha256[:2]>/<sha256>/ and may leave when killed: a radiance-map
+# folder being written or set aside (write_radiance_set), and the temporary files of atomic writes.
+_ARTIFACT_FOLDER = re.compile(r"[0-9a-f]{64}")
+_STALE_RADIANCE = re.compile(r"\.radiance\.(?:tmp|old)-(\d+)")
+
+
 def _sweep_artifacts(out: Path) -> None:
     """Remove the temporary files of workers killed mid-write (their artifact was redone and renamed into place
-    by another worker, or will be by the next run)."""
-    from ..util.files import sweep_stale_temporaries
-
+    by another worker, or will be by the next run). Only the batch's own: in artifact folders
+    ``maps/<sha256[:2]>/<sha256>/``, names the batch's writers give, of processes no longer alive; anything else
+    under ``maps/`` is left alone."""
     import shutil
 
-    from ..util.files import process_alive
+    from ..util.files import process_alive, sweep_stale_temporaries
 
-    maps = out / "maps"
-    if not maps.is_dir():
-        return
-    for stale in list(maps.rglob(".*.tmp*")):
-        if stale.is_dir():  # a radiance-map folder being written (.radiance.tmp-PID)
-            pid = stale.name.rsplit("-", 1)[-1]
-            if pid.isdigit() and not process_alive(int(pid)):
-                shutil.rmtree(stale, ignore_errors=True)
-        elif stale.exists():
-            sweep_stale_temporaries(stale.parent)
+    for folder in _artifact_folders(out / "maps"):
+        for entry in folder.iterdir():
+            match = _STALE_RADIANCE.fullmatch(entry.name)
+            if match and entry.is_dir() and not entry.is_symlink() and not process_alive(int(match.group(1))):
+                shutil.rmtree(entry, ignore_errors=True)
+        sweep_stale_temporaries(folder)
+
+
+def _artifact_folders(maps: Path) -> list[Path]:
+    """The folders ``maps``/<xx>/<sha256> the batch makes (xx the hash's first two hex digits), none through a
+    symlink."""
+    found = []
+    if not maps.is_dir() or maps.is_symlink():
+        return found
+    for prefix in maps.iterdir():
+        if re.fullmatch(r"[0-9a-f]{2}", prefix.name) and prefix.is_dir() and not prefix.is_symlink():
+            found += [f for f in prefix.iterdir() if _ARTIFACT_FOLDER.fullmatch(f.name) and
+                      f.name.startswith(prefix.name) and f.is_dir() and not f.is_symlink()]
+    return found
 
 
 def run_batch(inputs: list[str], out: Path, options: JobOptions, executor, resume: bool = False,

@@ -24,26 +24,26 @@ def register(sub) -> None:
 
 def run(args) -> None:
     from ..maps import repair
-    from ..util.files import check_output
+    from ..util.files import atomic_outputs, check_output, distinct_outputs
     from ..maps.images import image_header, read_image, write_image
     from ..util.limits import check_memory
     from ..render.compare import compare, error_heatmap, hdr_flip
     from ..maps.tonemap import heatmap
 
     inputs = [args.test, args.reference]
-    for out in (args.heatmap, args.flipmap):
-        if out is not None:
-            check_output(out, inputs)
+    for out in distinct_outputs([args.heatmap, args.flipmap]):
+        check_output(out, inputs)
     headers = [image_header(p) for p in inputs]
     check_memory(sum(h.read_bytes() + h.pixels * WORKING_BYTES_PER_PIXEL for h in headers),
                  f"comparing {args.test} with {args.reference}")
     test = repair(read_image(args.test), str(args.test))
     ref = repair(read_image(args.reference), str(args.reference))
     metrics = compare(test, ref)
-    if args.heatmap:
-        write_image(args.heatmap, error_heatmap(test, ref), encoded=True, inputs=inputs)
-    if args.flipmap:
-        write_image(args.flipmap, heatmap(hdr_flip(test, ref)[1], 1.0), encoded=True, inputs=inputs)
+    with atomic_outputs([args.heatmap, args.flipmap]):  # both or neither; one file named twice is refused
+        if args.heatmap:
+            write_image(args.heatmap, error_heatmap(test, ref), encoded=True, inputs=inputs)
+        if args.flipmap:
+            write_image(args.flipmap, heatmap(hdr_flip(test, ref)[1], 1.0), encoded=True, inputs=inputs)
     if args.json:
         print_json(metrics.as_dict())
     else:

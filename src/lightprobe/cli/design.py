@@ -25,7 +25,7 @@ def register(sub) -> None:
 
 def run(args) -> None:
     from ..sh.design import design_figure, edit
-    from ..util.files import check_output
+    from ..util.files import atomic_outputs, check_output
     from ..maps.images import write_image
     from ..sh.basis import project
     from ..sh.shfile import sh_json
@@ -36,7 +36,8 @@ def run(args) -> None:
         check_output(args.json, inputs + [args.output], text=True)
     original = project(load(args.file, args.layout, working_bytes_per_pixel=64), 2)
     edited = edit(original, args.sets, args.scales)
-    write_image(args.output, design_figure(original, edited, args.size), encoded=True, inputs=inputs)
-    if args.json:
-        write_text(args.json, sh_json(edited, source=str(args.file or "(shipped probe)")), inputs + [args.output])
+    with atomic_outputs([args.output, args.json]):  # both or neither
+        write_image(args.output, design_figure(original, edited, args.size), encoded=True, inputs=inputs)
+        if args.json:
+            write_text(args.json, sh_json(edited, source=str(args.file or "(shipped probe)")), inputs + [args.output])
     print(f"wrote {args.output}")

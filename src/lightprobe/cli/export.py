@@ -8,6 +8,7 @@ from pathlib import Path
 from .common import Number, add_option, add_probe, load, refuse, write_text
 
 CONTAINERS = ("babylon-env",)
+GLB_MAGIC = b"glTF"  # the first bytes of every binary glTF
 
 
 def register(sub) -> None:
@@ -43,7 +44,7 @@ def run(args) -> None:
         export_lights_file(args, inputs)
         return
     container = args.to in CONTAINERS or (args.to == "gltf" and args.sh is None)
-    check_output(args.output, inputs, text=not container)
+    check_output(args.output, inputs, text=not container, signature=container_signature(args) if container else None)
     if args.sh is not None:
         if args.file is not None:
             refuse("give a map or --sh, not both")
@@ -80,7 +81,7 @@ def export_lights_file(args, inputs) -> None:
     gltf = args.to == "gltf"
     if gltf and args.output.suffix.lower() not in (".glb", ".gltf"):
         refuse(f"--to gltf writes a .glb or .gltf file, not {args.output.name}")
-    check_output(args.output, inputs, text=not gltf)
+    check_output(args.output, inputs, text=not gltf, signature=container_signature(args) if gltf else None)
     check_regular_file(args.lights, "lights file")
     lights = read_lights_json(args.lights.read_bytes()[: MAX_BYTES + 1], str(args.lights))
     if gltf:
@@ -90,12 +91,22 @@ def export_lights_file(args, inputs) -> None:
 
         document, images = gltf_lights(lights)
         if args.output.suffix.lower() == ".glb":
-            write_bytes(args.output, glb(document, images), inputs)
+            write_bytes(args.output, glb(document, images), inputs, signature=GLB_MAGIC)
         else:
             write_text(args.output, gltf_embedded(document, images), inputs)
     else:
         write_text(args.output, export_lights(lights, args.to), inputs)
     print(f"wrote {args.output} ({len(lights.radii)} lights + ambient for {args.to})")
+
+
+def container_signature(args) -> bytes | None:
+    """The first bytes of the binary container ``args`` asks for (Babylon's .env, a .glb), or None for text (.gltf):
+    an existing output is overwritten only when it starts with them."""
+    if args.to == "babylon-env":
+        from ..exports.containers import ENV_MAGIC
+
+        return ENV_MAGIC
+    return GLB_MAGIC if args.output.suffix.lower() == ".glb" else None
 
 
 def read_sh(path: Path):
@@ -129,11 +140,12 @@ def write_container(args, env, sh, inputs) -> None:
 
     f = frame(args.frame) if args.frame else BABYLON
     if args.to == "babylon-env":
-        write_bytes(args.output, babylon_env(env, sh, args.specular_size, f), inputs)
+        write_bytes(args.output, babylon_env(env, sh, args.specular_size, f), inputs,
+                    signature=container_signature(args))
     else:
         document, images = gltf_ibl(env, sh, args.specular_size, args.gltf_scaling, f)
         if args.output.suffix.lower() == ".glb":
-            write_bytes(args.output, glb(document, images), inputs)
+            write_bytes(args.output, glb(document, images), inputs, signature=GLB_MAGIC)
         else:
             write_text(args.output, gltf_embedded(document, images), inputs)
     print(f"wrote {args.output} ({args.to}, {args.specular_size}² specular cube, frame {f.name})")

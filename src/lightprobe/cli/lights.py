@@ -49,7 +49,7 @@ def register(sub) -> None:
 
 
 def run(args) -> None:
-    from ..util.files import check_output
+    from ..util.files import atomic_outputs, check_output
     from ..maps.images import write_image
     from ..lights.decompose import LightParams, decompose, preview
     from ..lights.lightsfile import lights_json
@@ -66,24 +66,29 @@ def run(args) -> None:
         check_count(args.count)
         if args.ambient is not None:
             refuse(f"--ambient: {POINT_METHODS[args.method]} has no ambient map (its point lights carry the whole map)")
-    for path in (args.output, args.ambient, args.preview):
-        if path is not None:
-            check_output(path, inputs, text=path == args.output)
-    env = load(args.file, args.layout, working_bytes_per_pixel=WORKING_BYTES_PER_PIXEL, kernels=True)
-    if args.method in POINT_METHODS:
-        _point_lights(args, env, inputs)
-        return
-    dec = decompose(env, params)
-    text = lights_json(dec, project(dec.ambient, args.ambient_order), str(args.file or "(shipped probe)"))
-    if args.ambient is not None:
-        dec.ambient.save(args.ambient, inputs=inputs)
-    if args.preview is not None:
-        write_image(args.preview, preview(env, dec.lights), encoded=True, inputs=inputs)
-    write_text(args.output, text, inputs)
-    print(f"wrote {args.output} ({len(dec.lights)} lights, {100 * (1 - _ambient_share(text)):.0f} % of the power)")
+    # one file named twice is refused; every output is written aside and all are renamed together at the end, so a
+    # failure leaves every old file
+    with atomic_outputs([args.output, args.ambient, args.preview]):
+        for path in (args.output, args.ambient, args.preview):
+            if path is not None:
+                check_output(path, inputs, text=path == args.output)
+        env = load(args.file, args.layout, working_bytes_per_pixel=WORKING_BYTES_PER_PIXEL, kernels=True)
+        if args.method in POINT_METHODS:
+            done = _point_lights(args, env, inputs)
+        else:
+            dec = decompose(env, params)
+            text = lights_json(dec, project(dec.ambient, args.ambient_order), str(args.file or "(shipped probe)"))
+            if args.ambient is not None:
+                dec.ambient.save(args.ambient, inputs=inputs)
+            if args.preview is not None:
+                write_image(args.preview, preview(env, dec.lights), encoded=True, inputs=inputs)
+            write_text(args.output, text, inputs)
+            done = (f"wrote {args.output} ({len(dec.lights)} lights, {100 * (1 - _ambient_share(text)):.0f} % of the "
+                    "power)")
+    print(done)
 
 
-def _point_lights(args, env, inputs) -> None:
+def _point_lights(args, env, inputs) -> str:
     import json
     import time
 
@@ -100,7 +105,7 @@ def _point_lights(args, env, inputs) -> None:
     if args.preview is not None:
         write_image(args.preview, preview(env, lights), encoded=True, inputs=inputs)
     write_text(args.output, json.dumps(doc, indent=1, allow_nan=False) + "\n", inputs)
-    print(f"wrote {args.output} ({len(lights)} point lights by {name})")
+    return f"wrote {args.output} ({len(lights)} point lights by {name})"
 
 
 def _ambient_share(text: str) -> float:

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import time
 from pathlib import Path
 
@@ -66,7 +67,7 @@ def run(args) -> None:
 def _synthesize(args) -> None:
     import json
 
-    from ..util.files import check_output, write_text
+    from ..util.files import atomic_outputs, check_output, write_text
     from ..glossy.radiance import view_frame
     from ..glossy.radiancefile import RadianceSet, manifest, read_radiance_set
     from ..glossy.rsibr import blend_weights, sums_smooth_part, synthesize
@@ -77,6 +78,10 @@ def _synthesize(args) -> None:
         refuse("--synthesize takes the BRDF and the views from the folder's manifest: no --brdf or --view")
     if args.output.suffix.lower() != ".exr":
         refuse("with --synthesize, --output is the map's .exr file")
+    folder = Path(os.path.realpath(args.file))
+    if folder in Path(os.path.realpath(args.output.parent)).joinpath(args.output.name).parents:
+        refuse(f"refusing to write {args.output}: it is inside the set {args.file} that --synthesize reads (its "
+               "maps and manifest.json stay as they are): choose an output outside the folder")
     check_output(args.output)
     check_output(args.output.with_suffix(".json"), text=True)
     rset = read_radiance_set(args.file)
@@ -91,9 +96,11 @@ def _synthesize(args) -> None:
               "smooth_part": "summed exactly" if smooth else "warped with the rest (the paper's synthesis)",
               "sources": [int(i) for i in sources], "weights": [float(w) for w in weights], "set": str(args.file)}
     one = RadianceSet(rset.brdf, args.synthesize[None, :], view_frame(args.synthesize)[None], (out,), None, method)
-    out.save(args.output)
-    write_text(args.output.with_suffix(".json"),
-               json.dumps(manifest(one, [args.output.name], {"synthesis": seconds}), indent=1, allow_nan=False) + "\n")
+    with atomic_outputs([args.output, args.output.with_suffix(".json")]):
+        out.save(args.output)
+        write_text(args.output.with_suffix(".json"),
+                   json.dumps(manifest(one, [args.output.name], {"synthesis": seconds}), indent=1,
+                              allow_nan=False) + "\n")
     print(f"synthesised {rset.size}² map for view {', '.join(f'{x:.4f}' for x in args.synthesize)} from views "
           f"{', '.join(str(int(i)) for i in sources)} (weights {', '.join(f'{w:.3f}' for w in weights)}): "
           f"{args.output}")
@@ -141,10 +148,11 @@ def _bake(args) -> None:
         return
     import json
 
-    from ..util.files import write_text
+    from ..util.files import atomic_outputs, write_text
 
-    maps[0].save(args.output, inputs=inputs)
     doc = manifest(rset, [args.output.name], timings, source)
-    write_text(args.output.with_suffix(".json"), json.dumps(doc, indent=1, allow_nan=False) + "\n", inputs)
+    with atomic_outputs([args.output, args.output.with_suffix(".json")]):
+        maps[0].save(args.output, inputs=inputs)
+        write_text(args.output.with_suffix(".json"), json.dumps(doc, indent=1, allow_nan=False) + "\n", inputs)
     print(f"radiance map {args.size}² of {brdf.spec()} for view {', '.join(f'{x:.4f}' for x in args.view)}: "
           f"{args.output} (frame in {args.output.with_suffix('.json').name})")

@@ -154,14 +154,14 @@ def write_radiance_set(folder: str | os.PathLike, rset: RadianceSet, timings: di
                        source: str | None = None) -> Path:
     """Write the set as ``folder`` (EXRs ``view_000.exr`` … and ``manifest.json``), atomically.
 
-    It is written into a temporary folder beside it, renamed into place once complete (an existing set there is
-    replaced; any other non-empty folder is refused). The smooth cube, when the set has one, goes in as
+    It is written into a temporary folder beside it, renamed into place once complete (an existing set there — a
+    ``manifest.json`` of format ``lightprobe.radiance`` — is replaced; any other non-empty folder is refused). The smooth cube, when the set has one, goes in as
     ``smooth.exr``. An error on the way removes the temporary folder and puts the previous set back.
 
     Parameters
     ----------
     folder : str or os.PathLike
-        The set's folder: new, empty, or holding a set (a ``manifest.json``).
+        The set's folder: new, empty, or holding a set (a ``manifest.json`` whose format is ``lightprobe.radiance``).
     rset : RadianceSet
         The set.
     timings : dict, optional
@@ -177,10 +177,11 @@ def write_radiance_set(folder: str | os.PathLike, rset: RadianceSet, timings: di
     Raises
     ------
     lightprobe.util.errors.UsageError
-        ``folder`` exists and is not a radiance-map folder: a file, or a non-empty folder without ``manifest.json``.
+        ``folder`` exists and is not a radiance-map folder: a file, or a non-empty folder without a ``manifest.json``
+        of this format (another program's manifest, say).
     """
     folder = Path(folder)
-    if folder.exists() and (not folder.is_dir() or (any(folder.iterdir()) and not (folder / "manifest.json").is_file())):
+    if folder.exists() and (not folder.is_dir() or (any(folder.iterdir()) and not _holds_a_set(folder))):
         raise UsageError(f"{folder} exists and is not a radiance-map folder: give a new or empty folder")
     temp = folder.parent / f".{folder.name}.tmp-{os.getpid()}"
     old = folder.parent / f".{folder.name}.old-{os.getpid()}"
@@ -204,6 +205,20 @@ def write_radiance_set(folder: str | os.PathLike, rset: RadianceSet, timings: di
         raise
     shutil.rmtree(old, ignore_errors=True)
     return folder
+
+
+def _holds_a_set(folder: Path) -> bool:
+    """True when ``folder``/manifest.json is a regular file of at most MAX_BYTES whose JSON object's format is ours:
+    the only folder :func:`write_radiance_set` replaces."""
+    path = folder / "manifest.json"
+    if not path.is_file():
+        return False
+    try:
+        with open(path, "rb") as f:
+            doc = json.loads(f.read(MAX_BYTES + 1))
+    except (OSError, ValueError):
+        return False
+    return isinstance(doc, dict) and doc.get("format") == FORMAT
 
 
 def read_radiance_set(folder: str | os.PathLike) -> RadianceSet:

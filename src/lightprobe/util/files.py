@@ -2,19 +2,24 @@
 
 Every output of lightprobe goes through :func:`atomic_path` (or :func:`write_text` / :func:`write_bytes` on it):
 
-* the target is refused when it is a folder, when it is one of the command's inputs (``sh in.hdr -o in.hdr``), or
-  (for text) when its extension names an image format;
+* the target is refused when it is a folder, when it is one of the command's inputs (``sh in.hdr -o in.hdr``),
+  (for text and binary containers) when its extension names an image format, or (for a binary container) when it
+  exists and is another kind of file (no container signature: a user's image or ``.env`` settings);
 * the data goes to a temporary file beside the target, named ``.NAME.lpPID-RANDOM.tmpEXT``; it is flushed and
   fsync'd, checked by the caller (an image is read back), and only then renamed over the target — so a full disk,
   a file-size limit or a crash never replaces a good file with a partial one;
 * SIGTERM and SIGHUP raise :class:`Terminated` in the CLI (see :func:`raise_on_termination`), so the temporary file
   is removed on the way out; after a ``kill -9`` nothing can run, so each new write sweeps the folder for temporary
   files of this naming whose process is gone.
+
+A command with several outputs writes them inside :func:`atomic_outputs`: each is written and checked aside as
+above, and all are renamed only once every one is complete, so a failure leaves every old file.
 """
 
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import errno
 import os
 import re
@@ -30,6 +35,8 @@ from .errors import InputError
 IMAGE_EXTENSIONS = frozenset(".hdr .rgbe .pic .exr .pfm .png .jpg .jpeg .tif .tiff .tga .bmp .webp .dds .ktx "
                              ".ktx2 .psd .gif .ppm .pnm".split())
 _TEMP_NAME = re.compile(r"^\..+\.lp(\d+)-[0-9a-f]{8}\.tmp(\.[^./]*)?$")
+# Inside atomic_outputs: the targets whose renames wait (resolved path -> temporary file, None until written).
+_PENDING: contextvars.ContextVar[dict | None] = contextvars.ContextVar("lightprobe_pending_outputs", default=None)
 
 
 class Terminated(BaseException):
@@ -131,7 +138,8 @@ def _same_file(a: Path, b: Path) -> bool:
         return False
 
 
-def check_output(path: Path, inputs: Iterable[os.PathLike | str | None] = (), text: bool = False) -> Path:
+def check_output(path: Path, inputs: Iterable[os.PathLike | str | None] = (), text: bool = False,
+                 signature: bytes | None = None) -> Path:
     """Refuse an output path that cannot or must not be written (see the module docstring); returns it.
 
     Parameters
@@ -143,6 +151,10 @@ def check_output(path: Path, inputs: Iterable[os.PathLike | str | None] = (), te
         None entries are skipped.
     text : bool, default False
         The output is text: a path whose extension names an image format (:data:`IMAGE_EXTENSIONS`) is refused.
+    signature : bytes, optional
+        The output is a binary container whose files start with these bytes (Babylon's ``.env`` magic, glTF's
+        ``glTF``): an image extension is refused as for text, and so is an existing non-empty file that does not
+        start with them (it is not an earlier output of the same kind).
 
     Returns
     -------
@@ -153,7 +165,8 @@ def check_output(path: Path, inputs: Iterable[os.PathLike | str | None] = (), te
     ------
     InputError
         ``path`` is a folder, its folder does not exist, it is one of ``inputs``, it has an image extension while
-        ``text`` is set, or it exists and is not a regular file.
+        ``text`` or ``signature`` is set, it exists and is not a regular file, or (``signature``) it exists and is
+        another kind of file.
     """
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")
@@ -164,11 +177,26 @@ def check_output(path: Path, inputs: Iterable[os.PathLike | str | None] = (), te
     for source in inputs:
         if source is not None and _same_file(path, Path(source)):
             raise InputError(f"refusing to write {path}: it is an input of this command (choose another output)")
-    if text and path.suffix.lower() in IMAGE_EXTENSIONS:
-        raise InputError(f"refusing to write text to {path}: its extension {path.suffix} names an image format")
+    if (text or signature is not None) and path.suffix.lower() in IMAGE_EXTENSIONS:
+        raise InputError(f"refusing to write {'text' if text else 'a binary container'} to {path}: its extension "
+                         f"{path.suffix} names an image format")
     if path.exists() and not path.is_file():
         raise InputError(f"cannot write {path}: it exists and is not a regular file")
+    if signature is not None and path.is_file() and _starts_otherwise(path, signature):
+        raise InputError(f"refusing to overwrite {path}: it exists and is not a file of this kind (its first bytes "
+                         "are not the format's signature; choose another output)")
     return path
+
+
+def _starts_otherwise(path: Path, signature: bytes) -> bool:
+    """True when the non-empty file ``path`` does not start with ``signature`` (an unreadable one: False, and the
+    write reports it)."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(len(signature))
+    except OSError:
+        return False
+    return bool(head) and head != signature
 
 
 def _fsync(path: Path) -> None:
@@ -181,14 +209,15 @@ def _fsync(path: Path) -> None:
 
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike, inputs: Iterable = (), text: bool = False,
-                verify: Callable[[Path], None] | None = None) -> Iterator[Path]:
+                verify: Callable[[Path], None] | None = None, signature: bytes | None = None) -> Iterator[Path]:
     """Yield a temporary path beside ``path``, and rename it onto ``path`` when the block succeeds.
 
     When the block succeeds, fsync the temporary file, run ``verify(tmp)`` (which raises if the file is
     incomplete), give it the usual permissions and rename it onto ``path``. On any failure the temporary file is
     removed and ``path`` is untouched. OS errors become one-line :class:`InputError`\\ s that name ``path``, not the
     temporary file. Before anything is written, ``path`` is checked (:func:`check_output`) and its folder swept of
-    stale temporaries (:func:`sweep_stale_temporaries`).
+    stale temporaries (:func:`sweep_stale_temporaries`). Inside :func:`atomic_outputs`, the rename of one of its
+    outputs waits until all of them are written.
 
     Parameters
     ----------
@@ -201,6 +230,8 @@ def atomic_path(path: str | os.PathLike, inputs: Iterable = (), text: bool = Fal
     verify : callable taking a Path, optional
         Called on the fsync'd temporary file before the rename; it raises (an :class:`InputError`, say) if the file
         is incomplete, and then ``path`` is left untouched.
+    signature : bytes, optional
+        The output is a binary container starting with these bytes (see :func:`check_output`).
 
     Yields
     ------
@@ -212,9 +243,11 @@ def atomic_path(path: str | os.PathLike, inputs: Iterable = (), text: bool = Fal
     InputError
         ``path`` is refused by :func:`check_output`, the block wrote nothing, or an OS error occurred on the way.
     """
-    path = check_output(Path(path), inputs, text)
+    path = check_output(Path(path), inputs, text, signature)
     sweep_stale_temporaries(path.parent if str(path.parent) else Path("."))
     tmp = temp_path_for(path)
+    pending = _PENDING.get()
+    key = _resolved(path)
     try:
         yield tmp
         if not tmp.is_file():
@@ -223,17 +256,115 @@ def atomic_path(path: str | os.PathLike, inputs: Iterable = (), text: bool = Fal
         if verify is not None:
             verify(tmp)
         os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, path)
-        with contextlib.suppress(OSError):  # make the rename itself durable
-            _fsync(path.parent if str(path.parent) else Path("."))
+        if pending is not None and key in pending and pending[key] is None:
+            pending[key] = tmp  # renamed with the command's other outputs (atomic_outputs)
+            tmp = None
+        else:
+            _rename(tmp, path)
     except OSError as e:
         raise InputError(f"cannot write {path}: {e.strerror or e}") from None
     finally:
+        _remove(tmp)
+
+
+def _rename(tmp: Path, path: Path) -> None:
+    """Rename the finished ``tmp`` onto ``path`` and make the rename durable; an OS error is an InputError."""
+    try:
+        os.replace(tmp, path)
+    except OSError as e:
+        raise InputError(f"cannot write {path}: {e.strerror or e}") from None
+    with contextlib.suppress(OSError):  # make the rename itself durable
+        _fsync(path.parent if str(path.parent) else Path("."))
+
+
+def _remove(tmp: Path | None) -> None:
+    if tmp is not None:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
 
 
-def write_bytes(path: str | os.PathLike, data: bytes, inputs: Iterable = (), text: bool = False) -> Path:
+def _resolved(path: Path) -> Path:
+    """``path`` with its folder resolved (symlinks, ``..``): two spellings of one output compare equal."""
+    return Path(os.path.realpath(path.parent if str(path.parent) else ".")) / path.name
+
+
+def distinct_outputs(paths: Iterable[os.PathLike | str | None]) -> list[Path]:
+    """The outputs of one command, refused when two of them name the same file.
+
+    Parameters
+    ----------
+    paths : iterable of path-like or None
+        The outputs; None entries (options not given) are skipped.
+
+    Returns
+    -------
+    list of Path
+        The outputs as :class:`~pathlib.Path`\\ s, in the order given.
+
+    Raises
+    ------
+    InputError
+        Two of them are one file: the same path, two spellings of it (``a.png``, ``sub/../a.png``, a symlinked
+        folder) or, for files that exist, hard links to it.
+    """
+    outputs = [Path(p) for p in paths if p is not None]
+    seen = set()
+    for path in outputs:
+        key = _resolved(path)
+        if key in seen or any(_same_file(path, other) for other in outputs if other is not path):
+            raise InputError(f"refusing to write {path} twice: two outputs of this command name the same file")
+        seen.add(key)
+    return outputs
+
+
+@contextlib.contextmanager
+def atomic_outputs(paths: Iterable[os.PathLike | str | None]) -> Iterator[list[Path]]:
+    """Commit several outputs of one command together: all of them, or none.
+
+    Inside the block each output is written as usual (:func:`atomic_path`, or the writers built on it: written aside,
+    fsync'd, checked), but its rename waits; when the block succeeds every one is renamed onto its target, back to
+    back. When the block fails (an error, a refused or incomplete output, SIGTERM) every temporary file is removed
+    and every old file is left as it was. (A rename that itself fails — an OS error, which a rename within one folder
+    hardly meets — stops there: the outputs before it are in place, the rest keep their old files.)
+
+    Parameters
+    ----------
+    paths : iterable of path-like or None
+        The outputs the block writes; None entries (options not given) are skipped. Two of them naming one file
+        are refused (:func:`distinct_outputs`).
+
+    Yields
+    ------
+    list of Path
+        The outputs, as :class:`~pathlib.Path`\\ s, in the order given.
+
+    Raises
+    ------
+    InputError
+        Two outputs name the same file; the block wrote nothing to one of the outputs; or a rename failed (an OS
+        error). Whatever the block raises passes through, after the temporary files are removed.
+    """
+    outputs = distinct_outputs(paths)
+    pending: dict[Path, Path | None] = {_resolved(path): None for path in outputs}
+    token = _PENDING.set(pending)
+    try:
+        yield outputs
+        _PENDING.reset(token)
+        token = None
+        missing = [p for p in outputs if pending[_resolved(p)] is None]
+        if missing:
+            raise InputError(f"cannot write {missing[0]}: nothing was written")
+        for path in outputs:
+            _rename(pending.pop(_resolved(path)), path)
+    finally:
+        if token is not None:
+            _PENDING.reset(token)
+        for tmp in pending.values():
+            _remove(tmp)
+
+
+def write_bytes(path: str | os.PathLike, data: bytes, inputs: Iterable = (), text: bool = False,
+                signature: bytes | None = None) -> Path:
     """Write ``data`` to ``path`` atomically; the written size is checked before the rename.
 
     Parameters
@@ -246,6 +377,9 @@ def write_bytes(path: str | os.PathLike, data: bytes, inputs: Iterable = (), tex
         The command's input files, which ``path`` must not be.
     text : bool, default False
         The data is text: an image extension on ``path`` is refused.
+    signature : bytes, optional
+        The data is a binary container starting with these bytes: an image extension on ``path``, or an existing
+        file of another kind there, is refused (see :func:`check_output`).
 
     Returns
     -------
@@ -264,7 +398,7 @@ def write_bytes(path: str | os.PathLike, data: bytes, inputs: Iterable = (), tex
         if tmp.stat().st_size != len(data):
             raise InputError(f"cannot write {path}: only {tmp.stat().st_size} of {len(data)} bytes were written")
 
-    with atomic_path(path, inputs, text, verify=complete) as tmp:
+    with atomic_path(path, inputs, text, verify=complete, signature=signature) as tmp:
         with open(tmp, "wb") as f:
             f.write(data)
             f.flush()
