@@ -66,3 +66,71 @@ def test_the_bake_cache_key_follows_every_file_a_gltf_or_obj_mesh_loads(tmp_path
         before = cache_folder(probe, mesh, BakeOptions(), tmp_path)
         (tmp_path / changed).write_bytes((tmp_path / changed).read_bytes() + b" changed")
         assert cache_folder(probe, mesh, BakeOptions(), tmp_path) != before, changed
+
+
+# ---- batch: a row for every input path, of the bytes processed, and never of its own artifacts --------------------
+def batch_table(out: Path, name: str) -> list[dict]:
+    import pyarrow.parquet as pq
+
+    return pq.read_table(out / name).to_pylist()
+
+
+def test_batch_gives_every_input_path_its_row_when_inputs_have_the_same_bytes(tmp_path):
+    first, twin, late = (small_map(tmp_path / f"{n}.exr", sun=5.0) for n in ("first", "twin", "late"))
+    twin.write_bytes(first.read_bytes())
+    late.write_bytes(first.read_bytes())
+    out = tmp_path / "out"
+    res = lightprobe("batch", first, twin, "--out", out, "--jobs", "sh", "--workers", "1")
+    assert res.returncode == 0, res.stderr
+    res = lightprobe("batch", first, twin, late, "--out", out, "--jobs", "sh", "--workers", "1", "--resume")
+    assert res.returncode == 0, res.stderr
+    rows = batch_table(out, "results.parquet")
+    assert sorted(r["path"] for r in rows) == sorted(str(p) for p in (first, late, twin))
+    assert len({r["sha256"] for r in rows}) == 1 and rows[0]["sh"] == rows[1]["sh"] == rows[2]["sh"]
+    assert batch_table(out, "errors.parquet") == []
+
+
+def test_batch_records_no_row_for_a_file_replaced_while_it_was_processed(tmp_path, monkeypatch):
+    import lightprobe.maps.files as files
+    from lightprobe.batch.task import JobOptions, file_digest, process
+
+    path = small_map(tmp_path / "probe.exr")
+    before = file_digest(path)[0]
+    read = files.read_envmap_within_budget
+
+    def read_then_replace(*args, **kwargs):
+        env = read(*args, **kwargs)
+        small_map(tmp_path / "other.exr", value=7.0).replace(path)
+        return env
+
+    monkeypatch.setattr(files, "read_envmap_within_budget", read_then_replace)
+    result = process(str(path), JobOptions(jobs=("sh",)), str(tmp_path / "out"))
+    assert result["kind"] == "error" and "changed while it was processed" in result["message"], result
+    assert result["sha256"] == before
+
+
+def test_batch_resumed_with_its_folder_inside_the_glob_does_not_take_its_own_artifacts_as_inputs(tmp_path):
+    tree = tmp_path / "tree"
+    tree.mkdir()
+    for i in range(2):
+        small_map(tree / f"probe{i}.exr", sun=float(i + 1))
+    out = tree / "out"
+    for resume in ((), ("--resume",), ("--resume",)):
+        res = lightprobe("batch", f"{tree}/**", "--out", out, "--jobs", "sh,thumbnail", "--workers", "1", *resume)
+        assert res.returncode == 0, res.stderr
+    assert sorted(Path(r["path"]).name for r in batch_table(out, "results.parquet")) == ["probe0.exr", "probe1.exr"]
+    assert batch_table(out, "errors.parquet") == []
+
+
+def test_batch_globs_do_not_follow_symbolic_link_loops_and_take_each_file_once(tmp_path):
+    (tmp_path / "a" / "b").mkdir(parents=True)
+    small_map(tmp_path / "a" / "b" / "probe.exr")
+    os.symlink("..", tmp_path / "a" / "b" / "up")
+    os.symlink("../..", tmp_path / "a" / "b" / "top")
+    os.symlink("b/probe.exr", tmp_path / "a" / "alias.exr")
+    code = ("import json, sys; from lightprobe.batch.inputs import expand_inputs; "
+            "print(json.dumps(expand_inputs([sys.argv[1]])))")
+    res = subprocess.run([sys.executable, "-c", code, f"{tmp_path}/**/*.exr"], capture_output=True, text=True,
+                         timeout=60)
+    assert res.returncode == 0, res.stderr
+    assert json.loads(res.stdout) == [str(tmp_path / "a" / "alias.exr")]
