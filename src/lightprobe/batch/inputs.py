@@ -39,7 +39,7 @@ def _listdir(folder: str) -> list[os.DirEntry]:
     try:
         with os.scandir(folder or os.curdir) as entries:
             return sorted(entries, key=lambda e: e.name)
-    except OSError:
+    except (OSError, ValueError):
         return []
 
 
@@ -134,7 +134,10 @@ def expand_inputs(items: list[str], exclude: os.PathLike | str | None = None) ->
         raise UsageError("no inputs: give files, globs or a list of paths")
     seen, unique = set(), []
     for p in out:
-        real = os.path.realpath(p)
+        try:
+            real = os.path.realpath(p)
+        except ValueError:  # a listed path with a NUL byte, which no file can have: that input's error, later
+            real = os.path.abspath(p)
         if real not in seen:
             seen.add(real)
             unique.append(os.path.abspath(p))
