@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from lightprobe.maps.images import write_image
+from test_cli import assert_clean_failure, run
 
 EXE = str(Path(sys.executable).with_name("lightprobe"))
 
@@ -134,3 +135,65 @@ def test_batch_globs_do_not_follow_symbolic_link_loops_and_take_each_file_once(t
                          timeout=60)
     assert res.returncode == 0, res.stderr
     assert json.loads(res.stdout) == [str(tmp_path / "a" / "alias.exr")]
+
+
+# ---- exports: numbers the readers accept but engines cannot hold -----------------------------------------------------
+SH_DOC = {"format": "lightprobe.sh", "version": 2, "quantity": "radiance", "frame": "world", "l_max": 2}
+
+
+def lights_doc(direction, power, ambient=0.1) -> dict:
+    return {"format": "lightprobe.lights", "version": 1, "frame": "world", "method": "arbree2005",
+            "lights": [{"direction": direction, "angular_radius_deg": 5, "power": power},
+                       {"direction": [1, 0, 0], "angular_radius_deg": 5, "power": [1, 1, 1]}],
+            "ambient": {"sh": {**SH_DOC, "coefficients": [[ambient] * 3] * 9}}}
+
+
+def written_is_valid(path: Path, target: str) -> None:
+    """Strict JSON (no NaN or Infinity tokens), or C#/GLSL/text whose numbers are finite 32-bit floats."""
+    import re
+
+    text = path.read_text()
+    if target in ("unity", "glsl", "filament") and not text.lstrip().startswith("{"):
+        numbers = [float(v) for v in re.findall(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?", text)]
+        assert not re.search(r"\b(inf|nan|Infinity|NaN)\b", text, re.I), text[:500]
+        assert all(abs(v) <= np.finfo(np.float32).max for v in numbers)
+    else:
+        json.loads(text, parse_constant=lambda token: pytest.fail(f"{token} in {path.name}"))
+
+
+@pytest.mark.parametrize("target", ["threejs", "filament", "unity", "gltf", "babylon", "glsl"])
+def test_export_sh_refuses_coefficients_whose_engine_form_is_not_finite(tmp_path, capsys, target):
+    sh = tmp_path / "sh.json"
+    sh.write_text(json.dumps({**SH_DOC, "coefficients": [[1e308] * 3] * 9}))
+    code, _, err = run(capsys, "export", "--sh", sh, "--to", target, "-o", tmp_path / "out.txt")
+    assert_clean_failure(code, err, "too large")
+    assert not (tmp_path / "out.txt").exists()
+
+
+@pytest.mark.parametrize("case", ["power", "ambient", "fits"])
+@pytest.mark.parametrize("target", ["threejs", "filament", "unity", "gltf", "babylon"])
+def test_export_lights_writes_valid_files_or_refuses_numbers_engines_cannot_hold(tmp_path, capsys, target, case):
+    doc = {"power": lights_doc([0, 1, 0], [1e308] * 3), "ambient": lights_doc([0, 1, 0], [1] * 3, ambient=1e300),
+           "fits": lights_doc([0, 1, 0], [1e37] * 3, ambient=1e37)}[case]
+    source = tmp_path / "lights.json"
+    source.write_text(json.dumps(doc))
+    out = tmp_path / ("out.gltf" if target == "gltf" else "out.txt")
+    code, _, err = run(capsys, "export", "--lights", source, "--to", target, "-o", out)
+    if case == "fits":  # (glTF's RGBD cube warns that it clips such radiance)
+        assert code == 0 and all(line.startswith("lightprobe: warning:") for line in err.splitlines()), err
+        written_is_valid(out, target)
+    else:
+        assert_clean_failure(code, err, "too large")
+        assert not out.exists()
+
+
+def test_a_light_direction_whose_norm_overflows_keeps_its_direction(tmp_path):
+    from lightprobe.exports.lights import export_babylon_lights
+    from lightprobe.lights.lightsfile import read_lights_json
+
+    lights = read_lights_json(json.dumps(lights_doc([1e200, 1e200, 0], [1, 1, 1])))
+    assert np.allclose(lights.directions[0], [2 ** -0.5, 2 ** -0.5, 0])
+    tiny = read_lights_json(json.dumps(lights_doc([0, 0, 1e-300], [1, 1, 1])))
+    assert np.allclose(tiny.directions[0], [0, 0, 1])
+    found = json.loads(export_babylon_lights(lights))["directionalLights"]
+    assert any(np.allclose(light["direction"], [-(2 ** -0.5), -(2 ** -0.5), 0]) for light in found)
