@@ -197,3 +197,46 @@ def test_a_light_direction_whose_norm_overflows_keeps_its_direction(tmp_path):
     assert np.allclose(tiny.directions[0], [0, 0, 1])
     found = json.loads(export_babylon_lights(lights))["directionalLights"]
     assert any(np.allclose(light["direction"], [-(2 ** -0.5), -(2 ** -0.5), 0]) for light in found)
+
+
+# ---- radiance sets: maps that are not numbers, views the set does not cover, BRDFs computed wrongly -----------------
+def tiny_set(data: np.ndarray | None = None, triangles=None):
+    """A set of the 12 geodesic views with constant maps (``data`` for the first), its mesh or ``triangles``."""
+    from lightprobe.glossy.brdf import parse_brdf
+    from lightprobe.glossy.radiance import geodesic_views, view_frame
+    from lightprobe.glossy.radiancefile import RadianceSet
+    from lightprobe.maps import EnvMap
+    from lightprobe.maps.layouts import Sphere
+
+    views, mesh = geodesic_views(12)
+    frames = np.array([view_frame(v) for v in views])
+    maps = [EnvMap(np.full((8, 8, 3), 0.5, np.float32), Sphere(f)) for f in frames]
+    if data is not None:
+        maps[0] = EnvMap(data, Sphere(frames[0]))
+    return RadianceSet(parse_brdf("lambert"), views, frames, tuple(maps), mesh if triangles is None else triangles,
+                       {}, None)
+
+
+def test_synthesize_refuses_a_set_whose_maps_hold_nan_or_infinity(tmp_path, capsys):
+    from lightprobe.glossy.radiancefile import write_radiance_set
+
+    data = np.full((8, 8, 3), 0.5, np.float32)
+    data[3, 4] = np.nan
+    data[4, 4] = np.inf
+    write_radiance_set(tmp_path / "set", tiny_set(data))
+    code, _, err = run(capsys, "radiance", tmp_path / "set", "--synthesize", "0.1,0.2,1", "-o", tmp_path / "v.exr")
+    assert_clean_failure(code, err, "not finite")
+    assert not (tmp_path / "v.exr").exists()
+
+
+def test_synthesize_refuses_a_view_outside_every_triangle_of_the_set():
+    from lightprobe.glossy.rsibr import synthesize
+    from lightprobe.util.errors import InputError
+
+    full = tiny_set()
+    covered = full.triangles[:1]
+    partial = tiny_set(triangles=covered)
+    inside = full.views[covered[0]].sum(axis=0)
+    assert np.isfinite(synthesize(partial, inside).data).all()
+    with pytest.raises(InputError, match="outside every triangle"):
+        synthesize(partial, -inside)
