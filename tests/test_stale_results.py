@@ -240,3 +240,38 @@ def test_synthesize_refuses_a_view_outside_every_triangle_of_the_set():
     assert np.isfinite(synthesize(partial, inside).data).all()
     with pytest.raises(InputError, match="outside every triangle"):
         synthesize(partial, -inside)
+
+
+@pytest.mark.parametrize("spec", ["ggx:alpha=1e-6", "coat:alpha=1e-6,ior=1.5,albedo=0", "plastic:alpha=0.001",
+                                  "phong:n=100000", "ggx:alpha=0.2,eta=1e-300,k=0", "ggx:alpha=0.2,eta=1,k=1e300"])
+def test_brdf_parameters_whose_maps_cannot_be_computed_correctly_are_refused(spec):
+    from lightprobe.glossy.brdf import parse_brdf
+    from lightprobe.util.errors import UsageError
+
+    with pytest.raises(UsageError, match="must be in|needs eta in"):
+        parse_brdf(spec)
+
+
+@pytest.mark.parametrize("spec,black", [("ggx:alpha=0.01", False), ("phong:n=20000", False),
+                                        ("ggx:alpha=0.2,eta=0.001/1/100,k=100/0/0", False),
+                                        ("coat:alpha=0.1,ior=1,albedo=0.5", False), ("ggx:alpha=0.2,ior=1", True),
+                                        ("coat:alpha=0.1,ior=1,albedo=0", True), ("ggx:alpha=0.2,eta=1,k=0", True),
+                                        ("lambert:albedo=0", True), ("blinn:n=10,ks=0", True)])
+def test_brdfs_at_the_ends_of_their_ranges_give_finite_maps_and_black_ones_warn_once(spec, black):
+    import warnings
+
+    from lightprobe.glossy.brdf import parse_brdf
+    from lightprobe.glossy.radiance import radiance_map
+    from lightprobe.maps import EnvMap
+    from lightprobe.maps.layouts import LATLONG
+    from lightprobe.util.errors import LightprobeWarning
+
+    env = EnvMap(np.repeat(np.linspace(0.2, 1.0, 32, dtype=np.float32)[None, :, None], 16, 0).repeat(3, 2), LATLONG)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        data = radiance_map(env, parse_brdf(spec), np.array([0.3, 0.4, 0.866]) / np.linalg.norm([0.3, 0.4, 0.866]),
+                            8).data
+    assert np.isfinite(data).all()
+    ours = [w for w in caught if issubclass(w.category, (LightprobeWarning, RuntimeWarning))]  # numpy's: RuntimeWarning
+    assert [w.category for w in ours] == ([LightprobeWarning] if black else []), [str(w.message) for w in ours]
+    assert (data.max() == 0) == black and data.max() <= 1.0 + 1e-3  # the environment's largest radiance is 1
