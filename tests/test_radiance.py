@@ -184,7 +184,7 @@ def test_one_view_writes_the_map_and_its_frame(tmp_path, capsys, small_probe):
 
 @pytest.mark.parametrize("argv, message", [
     (["--brdf", "velvet"], "unknown BRDF"),
-    (["--brdf", "ggx:alpha=0"], "alpha must be in (0, 1]"),
+    (["--brdf", "ggx:alpha=0"], "alpha must be in [0.01, 1]"),
     (["--brdf", "ggx", "--views", "20"], "views must be 12, 42 or 162"),
     (["--brdf", "ggx", "--view", "0,0,0"], "direction X,Y,Z"),
     (["--brdf", "ggx", "--view", "0,0,1"], "the map's .exr"),

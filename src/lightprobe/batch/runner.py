@@ -44,7 +44,8 @@ class Summary:
     done : int
         Rows added by this run.
     skipped : int
-        Inputs whose content is already in the table (another path with the same bytes).
+        Inputs whose content is already in the table (another path with the same bytes): not processed again, their
+        row is a copy of that content's row with their own path.
     failed : int
         Errors recorded by this run.
     seconds : float
@@ -414,6 +415,22 @@ def _artifact_folders(maps: Path) -> list[Path]:
     return found
 
 
+class _CommittedRows:
+    """The rows committed before this run, by content: a copy for another path with the same bytes (every input path
+    has its row). Read from the parts on first use."""
+
+    def __init__(self, parts: Parts):
+        self.parts, self.table, self.index = parts, None, {}
+
+    def row_for(self, result: dict) -> dict:
+        if self.table is None:
+            self.table = self.parts.read("rows")
+            for i, digest in enumerate(self.table.column("sha256").to_pylist()):
+                self.index.setdefault(digest, i)
+        row = self.table.slice(self.index[result["sha256"]], 1).to_pylist()[0]
+        return {**row, "path": result["path"], "size": result["size"], "worker": result["worker"], "seconds": 0.0}
+
+
 def run_batch(inputs: list[str], out: Path, options: JobOptions, executor, resume: bool = False,
               force: bool = False, chunk_rows: int = CHUNK_ROWS, chunk_seconds: float = CHUNK_SECONDS,
               progress=None) -> Summary:
@@ -466,6 +483,7 @@ def run_batch(inputs: list[str], out: Path, options: JobOptions, executor, resum
     write_manifest(out, manifest(options.as_dict()))  # the options are the folder's (check_out); versions now ours
     parts = Parts(out, options.order if "sh" in options.jobs else None)
     done_paths, done_hashes = done_keys(parts)
+    committed = _CommittedRows(parts)
     todo = [p for p in inputs if p not in done_paths]
     summary = Summary(total=len(inputs), already=len(inputs) - len(todo), workers=executor.workers,
                       executor=executor.name)
@@ -489,7 +507,8 @@ def run_batch(inputs: list[str], out: Path, options: JobOptions, executor, resum
 
             errors.append({**result, "lightprobe_version": __version__})
             summary.failed += 1
-        else:
+        else:  # the same bytes as a committed row: that row, for this path
+            rows.append(committed.row_for(result))
             summary.skipped += 1
         summary.seconds = time.perf_counter() - t0
         if len(rows) + len(errors) >= chunk_rows or time.perf_counter() - last_commit >= chunk_seconds:

@@ -369,7 +369,8 @@ def done_keys(parts: Parts) -> tuple[set[str], set[str]]:
 def consolidate(out: Path, parts: Parts) -> tuple[int, int]:
     """Write ``results.parquet`` and ``errors.parquet`` from the parts, each input once.
 
-    Rows are kept by content hash (the first committed kept), errors by path, and none for a path that has a row;
+    Rows and errors are kept by path (the first committed kept: inputs with the same bytes have a row each), and no
+    error for a path that has a row;
     both sorted by path. Each file is written to a temporary name and renamed (atomic each).
 
     Parameters
@@ -389,7 +390,7 @@ def consolidate(out: Path, parts: Parts) -> tuple[int, int]:
     import pyarrow.compute as pc
 
     _, pq = _pa()
-    rows = _first_of_each(parts.read("rows"), "sha256")
+    rows = _first_of_each(parts.read("rows"), "path")
     errors = _first_of_each(parts.read("errors"), "path")
     if errors.num_rows and rows.num_rows:
         errors = errors.filter(pc.invert(pc.is_in(errors.column("path"), value_set=rows.column("path"))))

@@ -117,7 +117,9 @@ def _limit_threads() -> None:
 def process(path: str, options: JobOptions, out: str, skip: frozenset = frozenset()) -> dict:
     """One input → ``{"kind": "row" | "error" | "skipped", …}``; ``skip``: content hashes already in the table.
 
-    See :mod:`lightprobe.batch.table` for the row's fields. It never raises for a bad input: whatever the file
+    See :mod:`lightprobe.batch.table` for the row's fields. The file is hashed before and after it is processed: one
+    replaced or rewritten meanwhile is an error, never a row whose numbers are of other bytes than its ``sha256``.
+    It never raises for a bad input: whatever the file
     provokes (a corrupt, truncated or hostile file, or running out of memory) is one error row. It sets
     ``LIGHTPROBE_THREADS`` to 1 in this process: one kernel thread per worker.
 
@@ -167,6 +169,14 @@ def process(path: str, options: JobOptions, out: str, skip: frozenset = frozense
         if not isinstance(e, LightprobeError):
             text = f"{type(e).__name__}: {text}"
         return {**base, "kind": "error", "error_class": type(e).__name__, "message": text}
+    try:
+        changed = file_digest(Path(path)) != (digest, size)
+    except (OSError, ValueError):
+        changed = True
+    if changed:  # the numbers may be of other bytes than the hash: neither is recorded
+        return {**base, "kind": "error", "error_class": "InputError",
+                "message": f"{path} changed while it was processed (its sha256 before and after differ): run the "
+                           "batch again with --resume once it is written"}
     row.update(base, kind="row", seconds=time.perf_counter() - t0,
                peak_rss=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024)
     return row

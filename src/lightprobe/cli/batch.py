@@ -67,7 +67,7 @@ def run(args) -> None:
         check_views(args.views)
     options = JobOptions(jobs=jobs, order=args.order, brdf=args.brdf, radiance_views=args.views,
                          radiance_size=args.size)
-    inputs = expand_inputs(args.inputs)
+    inputs = expand_inputs(args.inputs, exclude=args.out)
     check_out(args.out, options, args.resume, args.force)  # before a cluster is started or reached
     executor = (DaskPool(args.scheduler, args.dask_local, args.timeout) if args.scheduler or args.dask_local
                 else LocalPool(args.workers or os.cpu_count() or 1))

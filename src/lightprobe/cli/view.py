@@ -48,7 +48,7 @@ def run(args) -> None:
     three_root()  # the page's modules must be there before anything is baked
     source = probe_path(args.file)
     check_inputs(source, args.mesh)
-    folder = cache_folder(source, args.mesh, options, args.cache)
+    folder = cache_folder(source, args.mesh, options, args.cache, args.layout)
     if read_manifest(folder) is None:
         env = load(args.file, args.layout, working_bytes_per_pixel=64, kernels=True)
         print(f"baking into {folder} …", file=sys.stderr)

@@ -26,7 +26,8 @@ import math
 import numpy as np
 
 from ..util.errors import UsageError
-from .sh import babylon_polynomial, export_threejs, filament_coefficients, gltf_coefficients, unity_coefficients
+from .sh import (babylon_polynomial, check_engine_values, export_threejs, filament_coefficients, gltf_coefficients,
+                 unity_coefficients)
 from ..maps.frames import BABYLON, FILAMENT, THREEJS, UNITY, WORLD, Frame
 from ..lights.lightsfile import LightSet
 from ..util.names import LIGHT_EXPORT_TARGETS
@@ -119,10 +120,11 @@ def ambient_sh(lights: LightSet, folded: list[int], l_max: int = 2) -> SHCoeffs:
         Radiance coefficients ((l_max+1)², 3) in the world frame.
     """
     total = np.zeros((n_coeffs(l_max), 3))
-    if lights.ambient is not None:
-        total += lights.ambient.truncated(min(l_max, lights.ambient.l_max)).to_frame(WORLD).coeffs[:n_coeffs(l_max)]
-    for i in folded:
-        total += cap_sh(lights.directions[i], lights.radii[i], lights.powers[i], l_max).coeffs
+    with np.errstate(over="ignore", invalid="ignore"):  # too large a sum is refused by the engine's conversion
+        if lights.ambient is not None:
+            total += lights.ambient.truncated(min(l_max, lights.ambient.l_max)).to_frame(WORLD).coeffs[:n_coeffs(l_max)]
+        for i in folded:
+            total += cap_sh(lights.directions[i], lights.radii[i], lights.powers[i], l_max).coeffs
     return SHCoeffs(total, WORLD, "radiance")
 
 
@@ -153,10 +155,16 @@ def engine_lights(lights: LightSet, frame: Frame, over_pi: bool = False) -> list
         One dict a light (lists of floats for the vectors and the colour, floats for the intensity and the radius
         in degrees), sorted by intensity, largest first; a light with no power has colour (1, 1, 1) and
         intensity 0.
+
+    Raises
+    ------
+    InputError
+        A light's intensity is too large for an engine's 32-bit floats
+        (:func:`lightprobe.exports.sh.check_engine_values`).
     """
     out = []
     for d, r, p in zip(lights.directions, lights.radii, lights.powers):
-        e = perpendicular_irradiance(r, p) / (math.pi if over_pi else 1.0)
+        e = check_engine_values(perpendicular_irradiance(r, p) / (math.pi if over_pi else 1.0), "a light's intensity")
         colour, intensity = _colour_intensity(e)
         toward = frame.from_world(d)
         out.append({"travel": [float(-v) for v in toward], "toward": [float(v) for v in toward], "colour": colour,
@@ -206,7 +214,7 @@ def export_threejs_lights(lights: LightSet, frame: Frame = THREEJS) -> str:
                        "object": {"uuid": "5b0c0f0e-1a1b-4c2d-8e3f-000000000000", "type": "Group",
                                   "name": "lightprobe lights + ambient (three.js frame)", "layers": 1,
                                   "matrix": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1], "up": [0, 1, 0],
-                                  "children": children}}, indent=1)
+                                  "children": children}}, indent=1, allow_nan=False)
 
 
 def _srgb_hex(colour: list[float]) -> int:
@@ -248,7 +256,7 @@ def export_filament_lights(lights: LightSet, frame: Frame = FILAMENT) -> str:
         doc["sun"] = {"type": "SUN", "direction": sun[0]["travel"], "color": sun[0]["colour"],
                       "intensity": sun[0]["intensity"],
                       "sunAngularRadius": min(hi, max(lo, sun[0]["angular_radius_deg"]))}
-    return json.dumps(doc, indent=1)
+    return json.dumps(doc, indent=1, allow_nan=False)
 
 
 def export_babylon_lights(lights: LightSet, frame: Frame = BABYLON) -> str:
@@ -279,7 +287,7 @@ def export_babylon_lights(lights: LightSet, frame: Frame = BABYLON) -> str:
     return json.dumps({"format": "lightprobe.babylon-lights", "frame": frame.name, "directionalLights": out,
                        "maxSimultaneousLights": max(BABYLON_DEFAULT_LIGHTS, len(out)),
                        "polynomial": [[float(v) for v in poly[k]] for k in ("x", "y", "z", "xx", "yy", "zz", "yz",
-                                                                             "zx", "xy")]}, indent=1)
+                                                                             "zx", "xy")]}, indent=1, allow_nan=False)
 
 
 def export_unity_lights(lights: LightSet, frame: Frame = UNITY) -> str:
@@ -348,18 +356,23 @@ def gltf_lights(lights: LightSet, specular_size: int = 32) -> tuple[dict, list[b
     ------
     UsageError
         ``specular_size`` is not a power of two up to 1024.
+    InputError
+        A light's intensity or the ambient is too large for glTF's 32-bit floats.
     """
     from .containers import gltf_ibl
     from ..maps import EnvMap
     from ..maps.layouts import LATLONG
 
     grid = LATLONG.grid_shape(32)
+    found = engine_lights(lights, GLTF_NODES)  # lights, or an ambient, too large for glTF: refused before the cube
+    gltf_coefficients(ambient_sh(lights, []))
     if lights.ambient is not None:
-        radiance = np.maximum(lights.ambient.to_frame(WORLD).evaluate(LATLONG.directions(grid)), 0.0)
+        with np.errstate(over="ignore", invalid="ignore"):
+            radiance = np.maximum(lights.ambient.to_frame(WORLD).evaluate(LATLONG.directions(grid)), 0.0)
+        radiance = np.minimum(radiance, np.finfo(np.float32).max)
     else:
         radiance = np.zeros(grid + (3,))
     document, images = gltf_ibl(EnvMap(radiance.astype(np.float32), LATLONG), ambient_sh(lights, []), specular_size)
-    found = engine_lights(lights, GLTF_NODES)
     document["extensionsUsed"].append("KHR_lights_punctual")
     document["extensions"]["KHR_lights_punctual"] = {"lights": [
         {"type": "directional", "name": f"lightprobe light {k + 1}", "color": light["colour"],

@@ -15,13 +15,14 @@ never applied twice by accident.
 
 from __future__ import annotations
 
+import functools
 import json
 from math import pi
 
 import numpy as np
 
 from ..util.names import EXPORT_TARGETS, GLTF_SCALINGS
-from ..util.errors import UsageError
+from ..util.errors import InputError, UsageError
 from ..sh.irradiance import C1, C2, C3, C4, C5
 from ..maps.frames import BABYLON, FILAMENT, THREEJS, UNITY, WORLD, Frame, frame as frame_named
 from ..sh.basis import SHCoeffs, a_hat_per_coefficient, name
@@ -37,6 +38,53 @@ BASIS_CONSTANTS = np.array([0.5 * np.sqrt(1 / pi)] + [0.5 * np.sqrt(3 / pi)] * 3
 CS_SIGNS = np.array([1, -1, 1, -1, 1, -1, 1, -1, 1], dtype=np.float64)  # (−1)^m for l ≤ 2
 
 
+FLOAT32_MAX = float(np.finfo(np.float32).max)  # engines hold SH in 32-bit floats (uniforms, C# float literals)
+
+
+def check_engine_values(values, target: str, limit: float = FLOAT32_MAX):
+    """``values`` unchanged when an engine can hold every one: finite, and within ±``limit``.
+
+    Finite inputs can overflow on the way to an engine's form (1e308 × π, a frame's rotation); such a form would be
+    written as ``Infinity``/``NaN`` (not JSON) or an out-of-range C# literal, or read by the engine as infinity.
+
+    Parameters
+    ----------
+    values : array-like, or dict of array-like
+        The engine's numbers (a dict's values are checked).
+    target : str
+        The engine, named in the message.
+    limit : float, default FLOAT32_MAX
+        The largest magnitude allowed: :data:`FLOAT32_MAX` (3.4·10³⁸, what engines hold); ``inf`` for 64-bit files.
+
+    Returns
+    -------
+    array-like or dict
+        ``values``, unchanged.
+
+    Raises
+    ------
+    InputError
+        A value is not finite or its magnitude is over ``limit``: the input's numbers are too large for ``target``.
+    """
+    arrays = values.values() if isinstance(values, dict) else [values]
+    with np.errstate(invalid="ignore"):
+        if not all(np.all(np.abs(np.asarray(a, dtype=np.float64)) <= limit) for a in arrays):
+            raise InputError(f"refusing the export: the numbers are too large for {target} (not finite"
+                             f"{' in 32-bit floats' if limit < np.inf else ''} there; scale the input down)")
+    return values
+
+
+def _engine_form(target: str, limit: float = FLOAT32_MAX):
+    """Compute a target's numbers without numpy's overflow warnings, then :func:`check_engine_values` them."""
+    def wrap(f):
+        @functools.wraps(f)
+        def checked(*args, **kwargs):
+            with np.errstate(over="ignore", invalid="ignore"):
+                return check_engine_values(f(*args, **kwargs), target, limit)
+        return checked
+    return wrap
+
+
 # ---- scaling steps (each one named, each applied once) ---------------------------------------------------------------
 def _nine(sh: SHCoeffs, target_frame: Frame) -> np.ndarray:
     """Radiance L_lm, bands ≤ 2, stated in ``target_frame``: (9, 3)."""
@@ -44,7 +92,9 @@ def _nine(sh: SHCoeffs, target_frame: Frame) -> np.ndarray:
         raise UsageError(f"exports start from radiance coefficients, got {sh.quantity}")
     if sh.l_max < 2:
         raise UsageError("engine exports need coefficients up to band 2")
-    return sh.truncated(2).to_frame(target_frame).coeffs.copy()
+    with np.errstate(over="ignore", invalid="ignore"):
+        return check_engine_values(sh.truncated(2).to_frame(target_frame).coeffs.copy(),
+                                   f"the {target_frame.name} frame")
 
 
 def radiance_to_irradiance(c: np.ndarray) -> np.ndarray:
@@ -148,9 +198,12 @@ def export_json(sh: SHCoeffs, frame: Frame = WORLD) -> str:
     str
         The ``lightprobe.sh`` JSON text (no ``source``).
     """
+    with np.errstate(over="ignore", invalid="ignore"):
+        check_engine_values(sh.to_frame(frame).coeffs, "JSON", np.inf)
     return sh_json(sh, frame)
 
 
+@_engine_form("three.js")
 def threejs_coefficients(sh: SHCoeffs, frame: Frame = THREEJS) -> np.ndarray:
     """three.js ``SphericalHarmonics3``: radiance L_lm without the CS phase, in the frame of three.js's background.
 
@@ -213,9 +266,10 @@ def export_threejs(sh: SHCoeffs, frame: Frame = THREEJS) -> str:
             "intensity": 1,
             "sh": [float(v) for v in c.reshape(-1)],
         },
-    }, indent=1)
+    }, indent=1, allow_nan=False)
 
 
+@_engine_form("Filament")
 def filament_coefficients(sh: SHCoeffs, frame: Frame = FILAMENT) -> np.ndarray:
     """Filament ``IndirectLight::Builder::irradiance(3, sh)``: K_i Â_l L_lm / π, whose bare polynomial gives E/π.
 
@@ -271,6 +325,7 @@ def export_filament(sh: SHCoeffs, frame: Frame = FILAMENT) -> str:
                    for i, row in enumerate(c))
 
 
+@_engine_form("Unity")
 def unity_coefficients(sh: SHCoeffs, frame: Frame = UNITY) -> np.ndarray:
     """Unity ``SphericalHarmonicsL2`` as its shaders read it: K_i Â_l L_lm / π in Unity's frame, giving E/π.
 
@@ -328,7 +383,8 @@ def export_unity(sh: SHCoeffs, frame: Frame = UNITY, csharp: bool = True) -> str
     if not csharp:
         return json.dumps({"format": "UnityEngine.Rendering.SphericalHarmonicsL2", "frame": frame.name,
                            "scaling": "K_i * A_l * L_lm / pi (ShadeSH9 gives E/pi)",
-                           "sh": [[float(c[i, ch]) for i in range(9)] for ch in range(3)]}, indent=1)
+                           "sh": [[float(c[i, ch]) for i in range(9)] for ch in range(3)]}, indent=1,
+                          allow_nan=False)
     lines = [f"        sh[{ch}, {i}] = {c[i, ch]:.9g}f;  // {'RGB'[ch]} {name(i)}"
              for ch in range(3) for i in range(9)]
     return ("// lightprobe export: ambient SH for Unity (frame: Unity's left-handed +Y up, +Z forward).\n"
@@ -338,6 +394,7 @@ def export_unity(sh: SHCoeffs, frame: Frame = UNITY, csharp: bool = True) -> str
             + "\n".join(lines) + "\n        return sh;\n    }\n}\n")
 
 
+@_engine_form("glTF")
 def gltf_coefficients(sh: SHCoeffs, scaling: str = "irradiance", frame: Frame = BABYLON) -> np.ndarray:
     """``EXT_lights_image_based.irradianceCoefficients`` (9 × RGB), CS-phase basis.
 
@@ -410,7 +467,7 @@ def export_gltf(sh: SHCoeffs, scaling: str = "irradiance", frame: Frame = BABYLO
             "irradianceCoefficients": [[float(v) for v in row] for row in c],
             "extras": {"lightprobe": {"scaling": scaling, "basis": "Condon-Shortley phase", "frame": frame.name}},
         }]}},
-    }, indent=1)
+    }, indent=1, allow_nan=False)
 
 
 def babylon_polynomial_from_harmonics(h: np.ndarray) -> dict[str, np.ndarray]:
@@ -440,6 +497,7 @@ def babylon_polynomial_from_harmonics(h: np.ndarray) -> dict[str, np.ndarray]:
     }
 
 
+@_engine_form("Babylon")
 def babylon_harmonics(sh: SHCoeffs, frame: Frame = BABYLON) -> np.ndarray:
     """The harmonics Babylon lights with: E/π SH (Â_l L_lm / π), CS phase, Babylon's frame.
 
@@ -467,6 +525,7 @@ def babylon_harmonics(sh: SHCoeffs, frame: Frame = BABYLON) -> np.ndarray:
     return to_condon_shortley(irradiance_to_lambertian(radiance_to_irradiance(_nine(sh, frame))))
 
 
+@_engine_form("Babylon")
 def babylon_polynomial(sh: SHCoeffs, frame: Frame = BABYLON) -> dict[str, np.ndarray]:
     """Babylon.js ``SphericalPolynomial`` (x, y, z, xx, yy, zz, yz, zx, xy; RGB each) in Babylon's frame.
 
@@ -530,7 +589,7 @@ def export_babylon(sh: SHCoeffs, frame: Frame = BABYLON) -> str:
         "note": "polynomial as Babylon's own panorama path makes it (FromHarmonics of E/pi harmonics); harmonics "
                 "are E/pi SH in Babylon's CS-phase basis (its preScaledHarmonics before the basis constants); "
                 "radiance_harmonics are L_lm, CS phase",
-    }, indent=1)
+    }, indent=1, allow_nan=False)
 
 
 def export_glsl(sh: SHCoeffs, frame: Frame = WORLD) -> str:

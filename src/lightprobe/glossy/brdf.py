@@ -19,11 +19,12 @@ Mitsuba 3's ``roughconductor`` with ``distribution: ggx`` (a test renders both).
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..util.errors import UsageError
+from ..util.errors import LightprobeWarning, UsageError
 from ..util.jit import njit, prange
 
 # RGB complex indices of refraction (η, k) of Mitsuba 3's conductor presets, read from its scalar_rgb variant
@@ -37,6 +38,11 @@ CONDUCTORS = {
 }
 MITSUBA_CONDUCTOR_NAMES = {"gold": "Au", "silver": "Ag", "copper": "Cu", "aluminium": "Al", "chromium": "Cr"}
 MAX_EXPONENT = 1e5  # Phong / Blinn–Phong exponents above this are a mirror: use GGX with a small α
+# Narrower lobes than these are not resolved by the radiance maps' integration (GGX α = 0.003 overshoots a smooth
+# environment's largest value twofold, α = 1e-6 gives a black map; normalised Phong above 2·10⁴ overshoots too).
+MIN_ALPHA = 0.01
+MAX_PHONG_EXPONENT = 2e4
+CONDUCTOR_ETA, CONDUCTOR_K = (1e-3, 100.0), (0.0, 100.0)  # beyond these the exact Fresnel overflows to NaN
 
 
 # ---- vector helpers ---------------------------------------------------------------------------------------------
@@ -136,6 +142,8 @@ class Dielectric:
             raise UsageError(f"a dielectric's eta must be in [1, 10], got {self.eta!r}")
 
     def __call__(self, cos: np.ndarray) -> np.ndarray:
+        if self.eta == 1.0:  # no interface: nothing is reflected (the formula is 0/0 at grazing angles)
+            return np.zeros(np.shape(cos) + (3,))
         c = np.clip(cos, 0.0, 1.0)
         sin_t2 = (1 - c * c) / (self.eta * self.eta)
         cos_t = np.sqrt(np.clip(1 - sin_t2, 0.0, None))
@@ -155,8 +163,10 @@ class Conductor:
 
     def __post_init__(self):
         eta, k = _rgb(self.eta, "eta"), _rgb(self.k, "k")
-        if (eta <= 0).any() or (k < 0).any():
-            raise UsageError(f"a conductor needs eta > 0 and k ≥ 0, got eta={self.eta!r}, k={self.k!r}")
+        (elo, ehi), (klo, khi) = CONDUCTOR_ETA, CONDUCTOR_K
+        if (eta < elo).any() or (eta > ehi).any() or (k < klo).any() or (k > khi).any():
+            raise UsageError(f"a conductor needs eta in [{elo:g}, {ehi:g}] and k in [{klo:g}, {khi:g}], got "
+                             f"eta={self.eta!r}, k={self.k!r}")
         object.__setattr__(self, "eta", tuple(eta))
         object.__setattr__(self, "k", tuple(k))
 
@@ -166,9 +176,11 @@ class Conductor:
         c2 = c * c
         sin2 = 1 - c2
         root = np.sqrt(eta * eta - sin2)  # η cos θ_t, complex
-        rs = (c - root) / (c + root)
-        rp = (eta * eta * c - root) / (eta * eta * c + root)
-        return 0.5 * (np.abs(rs) ** 2 + np.abs(rp) ** 2)
+        with np.errstate(invalid="ignore", divide="ignore"):  # 0/0 at grazing angles where η = 1, k = 0
+            rs = (c - root) / (c + root)
+            rp = (eta * eta * c - root) / (eta * eta * c + root)
+        f = 0.5 * (np.abs(rs) ** 2 + np.abs(rp) ** 2)
+        return np.where(eta == 1, 0.0, f)  # no interface in that channel: nothing is reflected
 
 
 # ---- the BRDFs --------------------------------------------------------------------------------------------------
@@ -429,10 +441,10 @@ class Lambert(BRDF):
         return np.pi / 2
 
 
-def _exponent(value, what: str) -> float:
+def _exponent(value, what: str, most: float = MAX_EXPONENT) -> float:
     value = float(value)
-    if not (math.isfinite(value) and 0.0 <= value <= MAX_EXPONENT):
-        raise UsageError(f"{what} exponent n must be in [0, {MAX_EXPONENT:g}], got {value!r}")
+    if not (math.isfinite(value) and 0.0 <= value <= most):
+        raise UsageError(f"{what} exponent n must be in [0, {most:g}], got {value!r}")
     return value
 
 
@@ -447,7 +459,7 @@ class Phong(BRDF):
     central = "mirror"
 
     def __post_init__(self):
-        self.n = _exponent(self.n, "Phong")
+        self.n = _exponent(self.n, "Phong", MAX_PHONG_EXPONENT)
         if not 0 <= self.ks <= 1:
             raise UsageError(f"ks must be in [0, 1], got {self.ks!r}")
 
@@ -681,7 +693,7 @@ def ggx_d(cos_h: np.ndarray, alpha: float) -> np.ndarray:
     cos_h : numpy.ndarray
         cos θ_h = n·h, any shape; D is 0 where it is ≤ 0.
     alpha : float
-        The width α (α = roughness² in the engines' terms), > 0; :class:`GGX` takes it in (0, 1].
+        The width α (α = roughness² in the engines' terms), > 0; :class:`GGX` takes it in [:data:`MIN_ALPHA`, 1].
 
     Returns
     -------
@@ -715,8 +727,8 @@ def smith_g1(cos: np.ndarray, alpha: float) -> np.ndarray:
 
 def _alpha(value) -> float:
     value = float(value)
-    if not (math.isfinite(value) and 0.0 < value <= 1.0):
-        raise UsageError(f"GGX alpha must be in (0, 1], got {value!r}")
+    if not (math.isfinite(value) and MIN_ALPHA <= value <= 1.0):
+        raise UsageError(f"GGX alpha must be in [{MIN_ALPHA:g}, 1], got {value!r}")
     return value
 
 
@@ -1392,7 +1404,10 @@ def parse_brdf(spec: str) -> BRDF:
     or ``…,eta=0.2/0.4/1.4,k=4/2.4/1.6``, ``ggx:alpha=0.2,ior=1.5`` (exact dielectric),
     ``coat:alpha=0.1,ior=1.5,albedo=0.5/0.1/0.1``, ``plastic:alpha=0.1,ior=1.49,albedo=0.5/0.1/0.1`` (Mitsuba's
     roughplastic). RGB values are one number or r/g/b. A parameter left out takes its class's default (``ggx``:
-    α = 0.2 and f0 = 1, no Fresnel).
+    α = 0.2 and f0 = 1, no Fresnel). The ranges are those computed correctly: α in [:data:`MIN_ALPHA`, 1], a Phong
+    exponent up to :data:`MAX_PHONG_EXPONENT` (Blinn–Phong :data:`MAX_EXPONENT`), a conductor's η and k within
+    :data:`CONDUCTOR_ETA` and :data:`CONDUCTOR_K`. A BRDF that reflects no light (albedo or ks 0, an index of 1)
+    gives black maps: a :class:`~lightprobe.util.errors.LightprobeWarning` says so.
 
     Parameters
     ----------
@@ -1429,9 +1444,23 @@ def parse_brdf(spec: str) -> BRDF:
     if unknown:
         raise UsageError(f"{name} has no parameter {unknown[0]!r}; it takes {', '.join(sorted(allowed))}")
     if name == "ggx":
-        return GGX(_number("alpha", options.get("alpha", "0.2")), _fresnel(options))
-    values = {k: (_triple(k, v) if k == "albedo" else _number(k, v)) for k, v in options.items()}
-    return BRDFS[name](**values)
+        brdf = GGX(_number("alpha", options.get("alpha", "0.2")), _fresnel(options))
+    else:
+        values = {k: (_triple(k, v) if k == "albedo" else _number(k, v)) for k, v in options.items()}
+        brdf = BRDFS[name](**values)
+    if _reflects_nothing(brdf):
+        warnings.warn(f"BRDF {spec.strip()!r} reflects no light: its maps are black", LightprobeWarning,
+                      stacklevel=2)
+    return brdf
+
+
+def _reflects_nothing(brdf: BRDF) -> bool:
+    """f_r is 0 at a few pairs of directions: at normal, oblique and grazing views, toward the mirror and the normal
+    (an albedo of 0, ks 0, or a Fresnel term of no interface)."""
+    t = np.array([0.0, 0.5, 1.2, 0.0, 0.5, 1.2])
+    wo = np.stack([np.sin(t), np.zeros_like(t), np.cos(t)], axis=1)
+    wi = np.concatenate([wo[:3] * [-1, -1, 1], np.tile([0.0, 0.0, 1.0], (3, 1))])
+    return not np.any(brdf.eval(wi, wo, np.tile([0.0, 0.0, 1.0], (len(t), 1))))
 
 
 def _fresnel(options: dict):

@@ -242,8 +242,8 @@ def read_radiance_set(folder: str | os.PathLike) -> RadianceSet:
     Raises
     ------
     lightprobe.util.errors.InputError
-        No manifest; not JSON, not this format or version, or over MAX_BYTES; any field wrong; a map missing or not
-        ``size``² (the smooth cube: not a 6N × N strip of finite, non-negative radiance).
+        No manifest; not JSON, not this format or version, or over MAX_BYTES; any field wrong; a map missing, not
+        ``size``² or holding NaN or infinity (the smooth cube: not a 6N × N strip of finite, non-negative radiance).
     """
     from ..maps.images import read_image
 
@@ -280,6 +280,8 @@ def read_radiance_set(folder: str | os.PathLike) -> RadianceSet:
         data = read_image(map_path)[..., :3]
         if data.shape[:2] != (size, size):
             fail(f"views[{i}]: the map {name} is {data.shape[1]}×{data.shape[0]}, not {size}×{size}")
+        if not np.isfinite(data).all():
+            fail(f"views[{i}]: the map {name} holds pixels that are not finite (NaN or infinity)")
         views.append(direction)
         frames.append(frame)
         maps.append(EnvMap(np.ascontiguousarray(data, dtype=np.float32), Sphere(frame)))

@@ -7,7 +7,9 @@ spherical barycentric weights (areas by the Van Oosterom–Strackee formula: ≥
 for diffuse-like BRDFs, the mirror direction for specular-like ones: c_world = T_d g_c(p_d), read at
 p_s = g_c⁻¹(T_sᵀ c_world), bilinearly. Near a source map's rim the warp degrades (the mirror warp is singular at
 c = −v_s, the rim; the normal warp runs out of normals facing v_s), so each source's value is faded by a confidence
-that falls smoothly to 0 there, and the weights are renormalised.
+that falls smoothly to 0 there, and the weights are renormalised. A view outside every triangle of the mesh (a set
+whose triangles do not cover the sphere) is refused by :func:`synthesize`: the nearest triangle's maps, blended with
+weights that do not describe the view, would be a wrong map.
 
 Beyond the paper — the smooth part summed exactly (a control variate). The warp's error is not in reading the
 sources (exact source values at the warped texels change it by < 0.1 %) but in its premise: the same mirror
@@ -38,7 +40,7 @@ import numpy as np
 
 from ..maps import EnvMap
 from ..util.jit import njit, prange
-from ..util.errors import UsageError
+from ..util.errors import InputError, UsageError
 from ..maps.layouts import Sphere
 from .radiance import smooth_radiance, sphere_normals, view_frame
 from .radiancefile import RadianceSet
@@ -197,6 +199,9 @@ def synthesize(rset: RadianceSet, view: np.ndarray, warp: str | None = None, siz
     ------
     lightprobe.util.errors.UsageError
         A set without triangles, or a ``warp`` other than ``normal`` and ``mirror``.
+    lightprobe.util.errors.InputError
+        ``view`` is outside every triangle of the set (a set whose mesh does not cover the sphere): a blend of the
+        nearest triangle's maps would be a wrong map, so none is made.
     """
     if rset.triangles is None:
         raise UsageError("synthesis needs a set of views with its triangles (lightprobe radiance --views N)")
@@ -207,6 +212,9 @@ def synthesize(rset: RadianceSet, view: np.ndarray, warp: str | None = None, siz
     view = view / np.linalg.norm(view)
     size = size or rset.size
     frame = view_frame(view)
+    if _inside_products(rset.views, rset.triangles, view[None, :]).max() < -COVER_TOLERANCE:
+        raise InputError(f"the view {', '.join(f'{x:.4g}' for x in view)} is outside every triangle of the set's "
+                         "views: no three maps around it to blend (synthesise views the set's mesh covers)")
     sources, weights = blend_weights(rset.views, rset.triangles, view)
     if weights.max() >= 1 - 1e-12 and size == rset.size:
         only = sources[int(np.argmax(weights))]
@@ -226,6 +234,15 @@ def synthesize(rset: RadianceSet, view: np.ndarray, warp: str | None = None, siz
     data = np.zeros((size, size, 3), np.float32)
     data[inside] = out
     return EnvMap(data, Sphere(frame))
+
+
+def _inside_products(views: np.ndarray, triangles: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """(P, F): for each view and triangle the smallest of its triple products [v_i, v_{i+1}, v]: ≥ 0 inside it."""
+    a, b, c = views[triangles[:, 0]], views[triangles[:, 1]], views[triangles[:, 2]]
+    return np.minimum(np.minimum(v @ np.cross(a, b).T, v @ np.cross(b, c).T), v @ np.cross(c, a).T)
+
+
+COVER_TOLERANCE = 1e-9  # a view this far outside a triangle's edge (triple product) is still on that edge
 
 
 def blend_weights_many(views: np.ndarray, triangles: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -250,8 +267,7 @@ def blend_weights_many(views: np.ndarray, triangles: np.ndarray, v: np.ndarray) 
     weights : numpy.ndarray
         (P, 3) float64 spherical barycentric weights, ≥ 0, each row summing to 1.
     """
-    a, b, c = views[triangles[:, 0]], views[triangles[:, 1]], views[triangles[:, 2]]
-    products = np.minimum(np.minimum(v @ np.cross(a, b).T, v @ np.cross(b, c).T), v @ np.cross(c, a).T)
+    products = _inside_products(views, triangles, v)
     tri = triangles[np.argmax(products, axis=1)]
     va, vb, vc = views[tri[:, 0]], views[tri[:, 1]], views[tri[:, 2]]
     weights = np.stack([_excess(v, vb, vc), _excess(va, v, vc), _excess(va, vb, v)], axis=1)

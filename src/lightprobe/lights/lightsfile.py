@@ -156,7 +156,8 @@ class LightSet:
 def read_lights_json(text: str | bytes, what: str = "lights file") -> LightSet:
     """The lights of a ``lightprobe.lights`` v1 document; every field the exports use is checked.
 
-    Anything wrong raises one clear :class:`~lightprobe.util.errors.InputError`. Directions are normalised; a
+    Anything wrong raises one clear :class:`~lightprobe.util.errors.InputError`. Directions are normalised (scaled
+    by their largest component first, so that no finite direction overflows or underflows to zero); a
     radius must be within 0°..90°, powers finite and non-negative.
 
     Parameters
@@ -195,13 +196,14 @@ def read_lights_json(text: str | bytes, what: str = "lights file") -> LightSet:
         if not isinstance(light, dict):
             fail(f"light {i} is not an object")
         d, r, p = light.get("direction"), light.get("angular_radius_deg"), light.get("power")
-        if not _numbers(d, 3) or not np.all(np.isfinite(d)) or np.linalg.norm(d) < 1e-6:
+        if not _numbers(d, 3) or not np.all(np.isfinite(d)) or max(abs(float(v)) for v in d) == 0:
             fail(f"light {i}: direction must be three finite numbers, not all zero")
         if not _number(r) or not 0 <= r <= 90:
             fail(f"light {i}: angular_radius_deg must be a number within 0..90")
         if not _numbers(p, 3) or not np.all(np.isfinite(p)) or min(p) < 0:
             fail(f"light {i}: power must be three finite numbers ≥ 0")
-        directions.append(np.asarray(d, dtype=np.float64) / np.linalg.norm(d))
+        d = np.asarray(d, dtype=np.float64) / np.max(np.abs(d))  # within [-1, 1] first: its norm cannot overflow
+        directions.append(d / np.linalg.norm(d))
         radii.append(np.radians(float(r)))
         powers.append(np.asarray(p, dtype=np.float64))
     ambient = doc.get("ambient")

@@ -190,20 +190,25 @@ def mesh_triangle_count(path: Path) -> int:
     return len(load_mesh(path).faces)
 
 
-def cache_folder(probe: Path, mesh: Path | None, options: BakeOptions, root: Path | None = None) -> Path:
-    """``root``/<key>: the key hashes the probe's and the mesh's bytes, the options and the format's version.
+def cache_folder(probe: Path, mesh: Path | None, options: BakeOptions, root: Path | None = None,
+                 layout: str | None = None) -> Path:
+    """``root``/<key>: the key hashes the probe's and the mesh's bytes (with every file the mesh loads), the probe's
+    layout, the options and the format's version.
 
     Parameters
     ----------
     probe : Path
         The probe's file, whose bytes are hashed.
     mesh : Path or None
-        The mesh's file, whose bytes are hashed; None for the built-in scene.
+        The mesh's file, whose bytes are hashed with those of every file it loads (:func:`mesh_files`); None for
+        the built-in scene.
     options : BakeOptions
         The bake's options (:meth:`BakeOptions.key`).
     root : Path or None
         The cache's folder; None (default): ``$XDG_CACHE_HOME/lightprobe/view`` (``~/.cache`` without
         ``XDG_CACHE_HOME``).
+    layout : str or None
+        The layout the probe is read as (``--layout``); None (default): from its aspect ratio.
 
     Returns
     -------
@@ -212,13 +217,68 @@ def cache_folder(probe: Path, mesh: Path | None, options: BakeOptions, root: Pat
     """
     from ..util.files import digest_file
 
-    digest = hashlib.sha256(f"{FORMAT} {VERSION} {options.key()}".encode())
+    digest = hashlib.sha256(f"{FORMAT} {VERSION} {options.key()} layout={layout}".encode())
     for path in (probe, mesh):
         digest.update(b"\0")
         if path is not None:
             digest_file(path, digest)
+    for path in mesh_files(mesh)[1:] if mesh is not None else ():  # what the mesh loads: a name, then its bytes
+        digest.update(b"\0" + os.fsencode(path) + b"\0")
+        if path.is_file():
+            digest_file(path, digest)
+        else:
+            digest.update(b"missing")
     root = root or Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "lightprobe" / "view"
     return root / digest.hexdigest()[:24]
+
+
+MAX_MESH_INDEX_BYTES = 64 << 20  # a .gltf's JSON or an OBJ's .mtl read for the files they name
+
+
+def mesh_files(mesh: Path) -> list[Path]:
+    """The mesh file and every file loading it reads: a ``.gltf``'s buffers and images, an OBJ's ``mtllib`` files
+    and the textures they name; each relative to the file naming it, as the loader resolves it.
+
+    Parameters
+    ----------
+    mesh : Path
+        The mesh file. Other formats (GLB, PLY, STL, OFF) are self-contained; a ``data:`` URI is inside the file.
+
+    Returns
+    -------
+    list of Path
+        ``mesh`` first, then the files it names in the order named (each once; a named file may be missing).
+    """
+    from urllib.parse import unquote
+
+    files = [mesh]
+    suffix = mesh.suffix.lower()
+    if suffix == ".gltf" and mesh.is_file() and mesh.stat().st_size <= MAX_MESH_INDEX_BYTES:
+        try:
+            doc = json.loads(mesh.read_bytes())
+        except (OSError, ValueError):
+            doc = None
+        for kind in ("buffers", "images"):
+            items = doc.get(kind) if isinstance(doc, dict) else None
+            for item in items if isinstance(items, list) else ():
+                uri = item.get("uri") if isinstance(item, dict) else None
+                if isinstance(uri, str) and uri and not uri.startswith("data:"):
+                    files.append(mesh.parent / unquote(uri))
+    elif suffix == ".obj" and mesh.is_file():
+        libraries = []
+        with open(mesh, "rb") as f:
+            for line in f:
+                if line.startswith(b"mtllib"):
+                    libraries += [mesh.parent / os.fsdecode(name) for name in line.split()[1:]]
+        files += libraries
+        for library in libraries:
+            if library.is_file() and library.stat().st_size <= MAX_MESH_INDEX_BYTES:
+                for line in library.read_bytes().splitlines():
+                    words = line.split()
+                    if words and (words[0].lower().startswith(b"map_") or words[0].lower() in (b"bump", b"disp",
+                                                                                             b"decal", b"refl")):
+                        files.append(library.parent / os.fsdecode(words[-1]))
+    return list(dict.fromkeys(files))
 
 
 def read_manifest(folder: Path) -> dict | None:
