@@ -257,6 +257,8 @@ class DaskPool:
                                         dashboard_address=None, silence_logs=logging.ERROR, env=WORKER_ENVIRONMENT)
             scheduler = self.cluster.scheduler_address
         try:
+            if not local:  # Dask's client waits on a silent peer for ever; first a handshake within the timeout
+                _handshake(scheduler, timeout)
             self.client = Client(scheduler, timeout=f"{timeout}s")
         except (OSError, TimeoutError, ValueError) as e:
             self.close()
@@ -318,6 +320,29 @@ class DaskPool:
                     obj.close()
                 except Exception:  # noqa: BLE001 - closing is best effort
                     pass
+
+
+def _handshake(address: str, timeout: float) -> None:
+    """Open a Dask connection to ``address`` and exchange the handshake, all within ``timeout`` seconds, then close it.
+
+    Anything else at that address — a server that accepts and says nothing, one that answers HTTP, a closed port —
+    is an :class:`OSError` (a :class:`TimeoutError` past the deadline), never a wait without end or a traceback."""
+    import asyncio
+
+    from distributed.comm import connect
+
+    async def exchange():
+        comm = await connect(address, timeout=timeout)
+        await comm.close()
+
+    try:
+        asyncio.run(asyncio.wait_for(exchange(), timeout))
+    except asyncio.TimeoutError as e:  # the builtin TimeoutError since Python 3.11
+        raise TimeoutError(str(e) or "no Dask handshake: nothing answered, or not Dask") from None
+    except (OSError, ValueError):
+        raise
+    except Exception as e:  # noqa: BLE001 - a peer that is not Dask makes its protocol fail in many ways
+        raise OSError(f"not a Dask scheduler ({type(e).__name__})") from None
 
 
 # ---- the driver -----------------------------------------------------------------------------------------------------

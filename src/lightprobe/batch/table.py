@@ -26,11 +26,13 @@ import json
 import os
 import re
 import secrets
+import stat
 from pathlib import Path
 
 from ..util.errors import UsageError
 
 FORMAT, VERSION, SCHEMA_VERSION = "lightprobe.batch", 1, 1
+MAX_MANIFEST_BYTES = 1 << 20  # batch.json holds the versions and options: a few hundred bytes
 PART_NAME = re.compile(r"(rows|errors)-(\d{6,})-([0-9a-f]{8})\.parquet")  # what Parts.commit names a part
 JOB_NAMES = ("read", "sh", "lights", "irradiance", "radiance", "thumbnail")
 
@@ -147,11 +149,14 @@ def read_manifest(out: Path) -> dict | None:
     UsageError
         ``batch.json`` is unreadable, not JSON, or not a lightprobe batch manifest.
     """
-    try:
-        doc = json.loads((out / "batch.json").read_text())
-    except FileNotFoundError:
+    from ..util.errors import LightprobeError
+    from ..util.files import read_bounded
+
+    if not os.path.lexists(out / "batch.json"):
         return None
-    except (OSError, ValueError) as e:
+    try:
+        doc = json.loads(read_bounded(out / "batch.json", MAX_MANIFEST_BYTES, "batch manifest"))
+    except (LightprobeError, ValueError) as e:
         raise UsageError(f"{out}/batch.json is unreadable ({e}): not a batch folder this version can resume") \
             from None
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
@@ -191,7 +196,8 @@ class Parts:
     Raises
     ------
     UsageError
-        ``parts/`` holds a file that is not a part this batch wrote (nor a hidden one).
+        ``parts/`` holds a file that is not a part this batch wrote (nor a hidden one), or a part's name on anything
+        but a regular file (a FIFO, device, socket, link or folder: it is never opened).
     """
 
     def __init__(self, out: Path, order: int | None):
@@ -207,6 +213,9 @@ class Parts:
                 raise UsageError(f"{path} is not a part this batch wrote (rows-NNNNNN-xxxxxxxx.parquet or "
                                  "errors-…): move it out of the folder to resume")
             if match is not None:
+                if not stat.S_ISREG(path.lstat().st_mode):  # a FIFO would block the read for ever
+                    raise UsageError(f"{path} is not a regular file (a FIFO, device, socket, link or folder), so not "
+                                     "a part this batch wrote: move it out of the folder to resume")
                 numbers.append(int(match.group(2)))
         self.sequence = 1 + max(numbers, default=0)
 
@@ -303,10 +312,15 @@ def _read_checked(path: Path, schema_for, what: str, remedy: str):
     a :class:`UsageError`: "``path`` ``what`` (reason): ``remedy``"."""
     pa, pq = _pa()
     try:
-        found = pq.read_schema(path)
-        schema = schema_for(found)
-        _check_columns(found, schema)
-        return pq.read_table(path, schema=schema)
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)  # never waits: what is not a regular file is refused below
+        with os.fdopen(fd, "rb") as f:
+            if not stat.S_ISREG(os.fstat(fd).st_mode):
+                raise ValueError("not a regular file (a FIFO, device or socket)")
+            found = pq.read_schema(f)
+            schema = schema_for(found)
+            _check_columns(found, schema)
+            f.seek(0)
+            return pq.read_table(f, schema=schema)
     except (pa.ArrowException, OSError, ValueError) as e:
         reason = " ".join(str(e).split())[:200]
         raise UsageError(f"{path} {what} ({reason}): {remedy}") from None

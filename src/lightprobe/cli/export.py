@@ -66,8 +66,7 @@ def run(args) -> None:
 
 
 def export_lights_file(args, inputs) -> None:
-    from ..util.files import check_output
-    from ..maps.images import check_regular_file
+    from ..util.files import check_output, read_bounded
     from ..exports.lights import export_lights
     from ..lights.lightsfile import MAX_BYTES, read_lights_json
     from ..util.names import LIGHT_EXPORT_TARGETS
@@ -82,8 +81,7 @@ def export_lights_file(args, inputs) -> None:
     if gltf and args.output.suffix.lower() not in (".glb", ".gltf"):
         refuse(f"--to gltf writes a .glb or .gltf file, not {args.output.name}")
     check_output(args.output, inputs, text=not gltf, signature=container_signature(args) if gltf else None)
-    check_regular_file(args.lights, "lights file")
-    lights = read_lights_json(args.lights.read_bytes()[: MAX_BYTES + 1], str(args.lights))
+    lights = read_lights_json(read_bounded(args.lights, MAX_BYTES, "lights file"), str(args.lights))
     if gltf:
         from ..exports.containers import glb, gltf_embedded
         from ..util.files import write_bytes
@@ -110,11 +108,10 @@ def container_signature(args) -> bytes | None:
 
 
 def read_sh(path: Path):
-    from ..maps.images import check_regular_file
-    from ..sh.shfile import read_sh_json
+    from ..sh.shfile import MAX_BYTES, read_sh_json
+    from ..util.files import read_bounded
 
-    check_regular_file(path, "SH file")
-    sh = read_sh_json(path.read_bytes()[: 8 << 20], str(path))
+    sh = read_sh_json(read_bounded(path, MAX_BYTES, "SH file"), str(path))
     if sh.quantity != "radiance" or sh.l_max < 2:
         refuse(f"{path}: exports need radiance coefficients up to band 2")
     return sh

@@ -11,6 +11,9 @@ from pathlib import Path
 from .common import Number, add_option, add_probe, load, refuse
 
 WORKING_BYTES_PER_PIXEL = 64  # the working cube's resampling of each input pixel
+# Synthesis, per texel of each of the set's maps: the maps stacked for the kernel and their residuals (24 bytes),
+# and the new map's own arrays (~250 bytes a texel of one map, under 24 a texel of each of a set's 12 or more maps)
+SYNTHESIS_BYTES_PER_TEXEL = 48
 
 
 def _direction(text: str):
@@ -84,7 +87,7 @@ def _synthesize(args) -> None:
                "maps and manifest.json stay as they are): choose an output outside the folder")
     check_output(args.output)
     check_output(args.output.with_suffix(".json"), text=True)
-    rset = read_radiance_set(args.file)
+    rset = read_radiance_set(args.file, SYNTHESIS_BYTES_PER_TEXEL, kernels=True)
     if rset.triangles is None:
         refuse(f"{args.file} holds one view: synthesis needs a set (--views 12, 42 or 162)")
     t0 = time.perf_counter()
@@ -109,7 +112,7 @@ def _synthesize(args) -> None:
 def _bake(args) -> None:
     from ..glossy.brdf import parse_brdf
     from ..util.files import check_output
-    from ..glossy.radiance import check_views, geodesic_views, prepare
+    from ..glossy.radiance import check_views, geodesic_views, prepare, radiance_set_bytes
     from ..glossy.radiancefile import manifest, radiance_set, write_radiance_set
 
     brdf = parse_brdf(args.brdf)
@@ -123,7 +126,11 @@ def _bake(args) -> None:
             refuse("with --view, --output is the map's .exr file")
         check_output(args.output, inputs)
         check_output(args.output.with_suffix(".json"), inputs, text=True)
-    env = load(args.file, args.layout, working_bytes_per_pixel=WORKING_BYTES_PER_PIXEL, kernels=True)
+    count = 1 if args.view is not None else args.views
+    env = load(args.file, args.layout, working_bytes_per_pixel=WORKING_BYTES_PER_PIXEL, kernels=True,
+               extra_bytes=radiance_set_bytes(count, args.size),
+               what=f"{count} radiance map{'s' if count > 1 else ''} of {args.size}² from "
+                    f"{args.file or 'the shipped probe'}")
     t0 = time.perf_counter()
     lighting = prepare(env)
     timings = {"prepare": time.perf_counter() - t0}

@@ -299,6 +299,33 @@ def sphere_normals(size: int) -> np.ndarray:
     return np.stack([x, y, np.sqrt(np.clip(1 - x * x - y * y, 0.0, None))], axis=-1)
 
 
+MAP_BYTES_PER_TEXEL = 12  # a finished map, float32 RGB, kept until the set is written
+# one map being computed: its normals (local and world), views, sums and result, float64 RGB each, and their masks
+WORKING_BYTES_PER_TEXEL = 256
+
+
+def radiance_set_bytes(views: int, size: int) -> int:
+    """Estimated memory of computing ``views`` radiance maps of ``size``² (:func:`radiance_map` for each view).
+
+    Every finished map is kept until the set is written (:data:`MAP_BYTES_PER_TEXEL` a texel), and one map at a time
+    is being computed (:data:`WORKING_BYTES_PER_TEXEL` a texel); the environment's own memory is not included.
+
+    Parameters
+    ----------
+    views : int
+        The number of maps.
+    size : int
+        Texels across each map.
+
+    Returns
+    -------
+    int
+        Bytes, an exact Python integer.
+    """
+    texels = int(size) * int(size)
+    return int(views) * texels * MAP_BYTES_PER_TEXEL + texels * WORKING_BYTES_PER_TEXEL
+
+
 def check_views(count: int) -> int:
     """``count`` when it is a number of views :func:`geodesic_views` makes: 12, 42 or 162.
 

@@ -221,17 +221,25 @@ def _holds_a_set(folder: Path) -> bool:
     return isinstance(doc, dict) and doc.get("format") == FORMAT
 
 
-def read_radiance_set(folder: str | os.PathLike) -> RadianceSet:
+def read_radiance_set(folder: str | os.PathLike, working_bytes_per_texel: int = 0,
+                      kernels: bool = False) -> RadianceSet:
     """A set written by :func:`write_radiance_set` (or one map's ``OUT.json`` path), every field checked.
 
-    A missing or wrong-sized map, a frame that is not a rotation with v as its third column, or a bad triangle is one
-    clear :class:`~lightprobe.util.errors.InputError`. Each frame read is snapped to the nearest rotation (JSON's
-    decimals leave it orthonormal to ~1e-16 only).
+    A missing or wrong-sized map, a map named by two views, a frame that is not a rotation with v as its third
+    column, or a bad triangle is one clear :class:`~lightprobe.util.errors.InputError`. Every map's size is checked
+    from its header, and the whole set (with ``working_bytes_per_texel``) against the memory budget, before any
+    pixel is read. Each frame read is snapped to the nearest rotation (JSON's decimals leave it orthonormal to ~1e-16
+    only).
 
     Parameters
     ----------
     folder : str or os.PathLike
         The set's folder (its ``manifest.json`` is read), or the path of a single map's manifest.
+    working_bytes_per_texel : int, default 0
+        Bytes the caller needs per texel of every map beyond the maps themselves (12 bytes a texel), counted in the
+        memory check.
+    kernels : bool, default False
+        The caller runs compiled (numba) kernels on the set: their memory counts too.
 
     Returns
     -------
@@ -242,17 +250,23 @@ def read_radiance_set(folder: str | os.PathLike) -> RadianceSet:
     Raises
     ------
     lightprobe.util.errors.InputError
-        No manifest; not JSON, not this format or version, or over MAX_BYTES; any field wrong; a map missing, not
-        ``size``² or holding NaN or infinity (the smooth cube: not a 6N × N strip of finite, non-negative radiance).
+        No manifest; not JSON, not this format or version, or over MAX_BYTES; any field wrong; a map missing, named
+        by two views, not ``size``² or holding NaN or infinity (the smooth cube: not a 6N × N strip of finite,
+        non-negative radiance).
+    lightprobe.util.errors.BudgetError
+        Reading the maps (with ``working_bytes_per_texel``) would pass the memory budget.
     """
-    from ..maps.images import read_image
+    from ..maps.images import image_header, read_image
+    from ..util.limits import check_memory
+    from ..util.files import read_bounded
 
     path = Path(folder)
     manifest_path = path / "manifest.json" if path.is_dir() else path
     what = f"radiance-map manifest {manifest_path}"
     if not manifest_path.is_file():
         raise InputError(f"cannot read {what}: no such file")
-    doc, fail = versioned_document(manifest_path.read_bytes(), what, FORMAT, VERSION, MAX_BYTES)
+    doc, fail = versioned_document(read_bounded(manifest_path, MAX_BYTES, "radiance-map manifest"), what, FORMAT,
+                                   VERSION, MAX_BYTES)
     if doc.get("frame") != "world" or doc.get("quantity") != "radiance" or doc.get("layout") != "sphere":
         fail("frame, quantity and layout must be world, radiance and sphere")
     size = doc.get("size")
@@ -268,22 +282,34 @@ def read_radiance_set(folder: str | os.PathLike) -> RadianceSet:
     views_doc = doc.get("views")
     if not isinstance(views_doc, list) or not 1 <= len(views_doc) <= MAX_VIEWS:
         fail(f"views must be a list of 1 to {MAX_VIEWS}")
-    views, frames, maps = [], [], []
+    views, frames, paths, named, largest = [], [], [], {}, 0
     for i, view in enumerate(views_doc):
         direction, frame = _view_fields(view, i, fail)
         name = view["file"]
         if not isinstance(name, str) or "/" in name or "\\" in name or name.startswith("."):
             fail(f"views[{i}].file must be a file name in the folder")
+        if name in named:  # one file named by every view would be read (and held) once per view
+            fail(f"views[{i}]: the map {name} is views[{named[name]}]'s too (each view has its own map)")
+        named[name] = i
         map_path = manifest_path.parent / name
         if not map_path.is_file():
             fail(f"views[{i}]: the map {name} is missing")
-        data = read_image(map_path)[..., :3]
-        if data.shape[:2] != (size, size):
-            fail(f"views[{i}]: the map {name} is {data.shape[1]}×{data.shape[0]}, not {size}×{size}")
-        if not np.isfinite(data).all():
-            fail(f"views[{i}]: the map {name} holds pixels that are not finite (NaN or infinity)")
+        header = image_header(map_path)  # its size from the header alone: no pixel is read yet
+        if (header.height, header.width) != (size, size):
+            fail(f"views[{i}]: the map {name} is {header.width}×{header.height}, not {size}×{size}")
+        largest = max(largest, header.read_bytes())
         views.append(direction)
         frames.append(frame)
+        paths.append(map_path)
+    check_memory(len(paths) * size * size * (12 + working_bytes_per_texel) + largest,
+                 f"the {len(paths)} maps of {size}² in {manifest_path.parent}", kernels=kernels)
+    maps = []
+    for name, map_path, frame in zip(named, paths, frames):
+        data = read_image(map_path)[..., :3]
+        if data.shape[:2] != (size, size):  # the file changed since its header was read
+            fail(f"the map {name} is {data.shape[1]}×{data.shape[0]}, not {size}×{size}")
+        if not np.isfinite(data).all():
+            fail(f"the map {name} holds pixels that are not finite (NaN or infinity)")
         maps.append(EnvMap(np.ascontiguousarray(data, dtype=np.float32), Sphere(frame)))
     triangles = doc.get("triangles")
     if triangles is not None:
@@ -303,7 +329,7 @@ def read_radiance_set(folder: str | os.PathLike) -> RadianceSet:
 def _smooth_field(field, folder: Path, fail) -> EnvMap:
     """The manifest's ``smooth`` cube, checked: a file in the folder, a cube strip of the stated face size
     (1 to 64), finite and non-negative radiance."""
-    from ..maps.images import read_image
+    from ..maps.images import image_header, read_image
 
     if not isinstance(field, dict) or field.get("file") != SMOOTH_FILE or field.get("layout") != "cube" or \
             not isinstance(field.get("size"), int) or not 1 <= field["size"] <= 64:
@@ -311,6 +337,9 @@ def _smooth_field(field, folder: Path, fail) -> EnvMap:
     size = field["size"]
     if not (folder / SMOOTH_FILE).is_file():
         fail(f"smooth: the map {SMOOTH_FILE} is missing")
+    header = image_header(folder / SMOOTH_FILE)  # before its pixels are read: it may be any size
+    if (header.height, header.width) != (size, 6 * size):
+        fail(f"smooth: the map {SMOOTH_FILE} is {header.width}×{header.height}, not {6 * size}×{size}")
     data = read_image(folder / SMOOTH_FILE)[..., :3]
     if data.shape[:2] != (size, 6 * size):
         fail(f"smooth: the map {SMOOTH_FILE} is {data.shape[1]}×{data.shape[0]}, not {6 * size}×{size}")

@@ -310,6 +310,10 @@ def load_mesh(path: str | os.PathLike, material: Material = Material()) -> MeshI
 
     path = Path(path)
     check_regular_file(path, "mesh")
+    claimed = mesh_triangles(path)
+    if claimed is not None and claimed > max_triangles():  # before the mesh is read into memory
+        raise BudgetError(f"refusing mesh {path}: its file says {claimed} triangles, over the limit of "
+                          f"{max_triangles()} (set LIGHTPROBE_MAX_TRIANGLES to raise it)")
     if path.suffix.lower() in TEXT_MESH_SUFFIXES:  # trimesh would guess an encoding with a package we do not ship
         _check_utf8(path)
     try:
@@ -331,6 +335,107 @@ def load_mesh(path: str | os.PathLike, material: Material = Material()) -> MeshI
             texture = srgb_decode(np.asarray(image.convert("RGB"), dtype=np.float32) / 255.0)
     mat = replace(material, texture=texture if texture is not None else material.texture)
     return mesh_instance(loaded.vertices, loaded.faces, mat, uv=uv, name=path.stem)
+
+
+HEADER_BYTES = 1 << 16  # the most of a PLY or OFF file read for its header
+GLTF_JSON_BYTES = 64 << 20  # the most of a glTF's JSON read for its accessor counts
+
+
+def mesh_triangles(path: str | os.PathLike) -> int | None:
+    """How many triangles a mesh file says it has, at least, read from its header alone (nothing is loaded).
+
+    PLY: the header's ``element face N``; binary STL: its count (a file of 84 + 50 N bytes); ASCII STL and OBJ:
+    their ``facet`` and ``f`` lines, counted in one pass over the file; OFF: the face count of its first line of
+    numbers; glTF and GLB: the index (or, without indices, position) counts of their triangle primitives, ÷ 3. A
+    face with more than three corners makes more triangles than counted here, never fewer.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The mesh file; anything but a regular file gives None.
+
+    Returns
+    -------
+    int or None
+        The count; None when the format is another or its header does not say (the count is then checked once the
+        mesh is loaded).
+    """
+    import stat
+
+    path = Path(path)
+    kind = path.suffix.lower()
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)  # a FIFO is not waited on: it is no mesh
+        with os.fdopen(fd, "rb") as f:
+            if not stat.S_ISREG(os.fstat(fd).st_mode):
+                return None
+            if kind in (".ply", ".off"):
+                return _header_faces(f.read(HEADER_BYTES), kind)
+            if kind == ".stl":
+                head = f.read(84)
+                size = os.fstat(f.fileno()).st_size
+                count = int.from_bytes(head[80:84], "little") if len(head) == 84 else None
+                if count is not None and (not head.lstrip().startswith(b"solid") or size == 84 + 50 * count):
+                    return count
+                f.seek(0)
+                return _count_lines(f, b"facet")
+            if kind == ".obj":
+                return _count_lines(f, b"f")
+            if kind in (".gltf", ".glb"):
+                return _gltf_triangles(f, kind)
+    except (OSError, ValueError, UnicodeDecodeError, RecursionError):
+        return None
+    return None
+
+
+def _header_faces(head: bytes, kind: str) -> int | None:
+    import re
+
+    if kind == ".ply":
+        found = re.search(rb"^element[ \t]+face[ \t]+(\d{1,20})[ \t]*\r?$", head.split(b"end_header")[0], re.M)
+        return int(found.group(1)) if found else None
+    lines = [ln.split(b"#")[0].split() for ln in head.splitlines()[:64]]
+    counts = [ln for ln in lines if ln and ln[0][:1].isdigit()]
+    return int(counts[0][1]) if counts and len(counts[0]) >= 2 and counts[0][1].isdigit() else None
+
+
+def _count_lines(f, keyword: bytes, chunk: int = 1 << 24) -> int:
+    """Lines of the open file that start with ``keyword`` and a space or tab (leading blanks allowed)."""
+    import re
+
+    pattern, count, rest = re.compile(rb"^[ \t]*" + keyword + rb"[ \t]", re.M), 0, b""
+    for block in iter(lambda: f.read(chunk), b""):
+        text = rest + block
+        cut = text.rfind(b"\n") + 1
+        count += len(pattern.findall(text, 0, cut))
+        rest = text[cut:] if len(text) - cut <= 256 else b"#"  # a line that long is no face line's start
+    return count + len(pattern.findall(rest))
+
+
+def _gltf_triangles(f, kind: str) -> int | None:
+    import json
+
+    if kind == ".glb":
+        head = f.read(20)
+        if len(head) < 20 or head[:4] != b"glTF" or head[16:20] != b"JSON":
+            return None
+        length = int.from_bytes(head[12:16], "little")
+        text = f.read(length) if length <= GLTF_JSON_BYTES else None
+    else:
+        text = f.read(GLTF_JSON_BYTES + 1)
+    if text is None or len(text) > GLTF_JSON_BYTES:
+        return None
+    doc = json.loads(text)
+    accessors, total = doc.get("accessors") or [], 0
+    for mesh in doc.get("meshes") or []:
+        for primitive in mesh.get("primitives") or []:
+            if primitive.get("mode", 4) != 4:
+                continue
+            index = primitive.get("indices", (primitive.get("attributes") or {}).get("POSITION"))
+            if isinstance(index, int) and 0 <= index < len(accessors) and isinstance(accessors[index], dict):
+                count = accessors[index].get("count")
+                total += count // 3 if isinstance(count, int) and count > 0 else 0
+    return total
 
 
 def _check_utf8(path: Path, chunk: int = 1 << 24) -> None:

@@ -38,9 +38,9 @@ from pathlib import Path
 
 from ..maps import EnvMap, read_envmap
 from ..util.errors import BudgetError, InputError, UsageError, short
-from ..maps.images import check_regular_file, read_image
+from ..maps.images import read_image
 from ..util.limits import max_triangles
-from .scene import SPHERE_TRIANGLES, TORUS_TRIANGLES, Camera, Material, MeshInstance, Scene, fitted, ground_plane, load_mesh, sphere, torus, transformed
+from .scene import SPHERE_TRIANGLES, TORUS_TRIANGLES, Camera, Material, MeshInstance, Scene, fitted, ground_plane, load_mesh, mesh_triangles, sphere, torus, transformed
 
 MAX_FILE_BYTES = 16 << 20
 MAX_NODES = 200_000
@@ -176,11 +176,10 @@ def load_scene(path: str | os.PathLike, environment: EnvMap | None = None) -> Sc
         The file is over :data:`MAX_FILE_BYTES`, or the scene over :data:`MAX_MESHES` meshes or
         ``LIGHTPROBE_MAX_TRIANGLES`` triangles.
     """
+    from ..util.files import read_bounded
+
     path = Path(path)
-    check_regular_file(path, "scene")
-    if path.stat().st_size > MAX_FILE_BYTES:
-        raise BudgetError(f"refusing scene {path}: {path.stat().st_size} bytes is over {MAX_FILE_BYTES}")
-    text = path.read_text(encoding="utf-8", errors="replace")
+    text = read_bounded(path, MAX_FILE_BYTES, "scene").decode("utf-8", errors="replace")
     try:
         spec = json.loads(text) if path.suffix.lower() == ".json" else _load_yaml(text, path)
     except InputError:
@@ -200,11 +199,15 @@ class _TriangleBudget:
     def __init__(self):
         self.limit, self.used = max_triangles(), 0
 
+    def fits(self, count: int, what: str) -> None:
+        """BudgetError when ``count`` more triangles would pass the limit; nothing is taken."""
+        if self.used + count > self.limit:
+            raise BudgetError(f"refusing the scene: with {what} it has {self.used + count} triangles, over the limit "
+                              f"of {self.limit} (set LIGHTPROBE_MAX_TRIANGLES to raise it)")
+
     def take(self, count: int, what: str) -> None:
+        self.fits(count, what)
         self.used += count
-        if self.used > self.limit:
-            raise BudgetError(f"refusing the scene: with {what} it has {self.used} triangles, over the limit of "
-                              f"{self.limit} (set LIGHTPROBE_MAX_TRIANGLES to raise it)")
 
 
 SHAPE_TRIANGLES = {"sphere": SPHERE_TRIANGLES, "torus": TORUS_TRIANGLES}
@@ -261,6 +264,7 @@ def _mesh(entry, i: int, base: Path, ground_height: float, budget: _TriangleBudg
     if file is None:
         raise InputError(f"scene: meshes[{i}] needs a file or a shape (sphere, torus)")
     if file not in loaded:  # the same file named many times is read once
+        budget.fits(mesh_triangles(file) or 0, f"meshes[{i}] ({file.name})")  # as its file says: before loading it
         loaded[file] = load_mesh(file)
     mesh = loaded[file]
     budget.take(len(mesh.faces), f"meshes[{i}] ({file.name})")

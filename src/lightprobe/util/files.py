@@ -29,7 +29,7 @@ import signal
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
-from .errors import InputError
+from .errors import BudgetError, InputError
 
 # Extensions of image files: text is never written over one of these (``sh probe.hdr -o probe.hdr`` style mistakes).
 IMAGE_EXTENSIONS = frozenset(".hdr .rgbe .pic .exr .pfm .png .jpg .jpeg .tif .tiff .tga .bmp .webp .dds .ktx "
@@ -470,3 +470,54 @@ def digest_file(path: str | os.PathLike, digest) -> int:
             digest.update(block)
             size += len(block)
     return size
+
+
+def read_bounded(path: str | os.PathLike, limit: int, what: str = "") -> bytes:
+    """The whole of a small input file (JSON, YAML, a manifest), refused before it is read when over ``limit`` bytes.
+
+    The file is opened without blocking (a FIFO never waits for a writer), checked to be a regular file and its size
+    taken from the open file itself (``fstat``: no race with a rename); then at most ``limit + 1`` bytes are read, so
+    a file that grows, or a sparse file of any claimed size, never costs more than ``limit`` bytes of memory.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file to read (links are followed).
+    limit : int
+        The most bytes accepted.
+    what : str, default ""
+        What the file is, put before the path in messages (``"scene"`` gives "cannot read scene PATH: …").
+
+    Returns
+    -------
+    bytes
+        The file's contents, at most ``limit`` bytes.
+
+    Raises
+    ------
+    InputError
+        The path does not exist, cannot be opened, is a folder, or is not a regular file (a FIFO, device or socket).
+    BudgetError
+        The file is over ``limit`` bytes.
+    """
+    import stat
+
+    label = f"{what} {path}" if what else str(path)
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    except FileNotFoundError:
+        raise InputError(f"cannot read {label}: no such file") from None
+    except OSError as e:
+        reason = "it is a folder, not a file" if e.errno == errno.EISDIR else e.strerror or str(e)
+        raise InputError(f"cannot read {label}: {reason}") from None
+    with os.fdopen(fd, "rb") as f:
+        info = os.fstat(fd)
+        if stat.S_ISDIR(info.st_mode):
+            raise InputError(f"cannot read {label}: it is a folder, not a file")
+        if not stat.S_ISREG(info.st_mode):
+            raise InputError(f"cannot read {label}: it is not a regular file (a FIFO, device or socket)")
+        size = info.st_size
+        data = f.read(limit + 1) if size <= limit else b""
+    if size > limit or len(data) > limit:
+        raise BudgetError(f"refusing {label}: {max(size, len(data))} bytes is over the limit of {limit}")
+    return data

@@ -35,6 +35,7 @@ import numpy as np
 from ..util.errors import BudgetError, UsageError
 
 FORMAT, VERSION = "lightprobe.view", 1
+MAX_MANIFEST_BYTES = 16 << 20  # a bake.json longer than this is not one of ours
 BACKGROUND_WIDTH = 1024
 AMBIENT_GRID = (64, 128)
 PREFILTERED_GRID = (128, 256)
@@ -295,9 +296,12 @@ def read_manifest(folder: Path) -> dict | None:
         The manifest as :func:`bake` wrote it; None when ``bake.json`` is missing, unreadable, not JSON, or of another
         format or version.
     """
+    from ..util.errors import LightprobeError
+    from ..util.files import read_bounded
+
     try:
-        doc = json.loads((folder / "bake.json").read_text())
-    except (OSError, ValueError):
+        doc = json.loads(read_bounded(folder / "bake.json", MAX_MANIFEST_BYTES))
+    except (LightprobeError, ValueError):
         return None
     if not isinstance(doc, dict) or doc.get("format") != FORMAT or doc.get("version") != VERSION:
         return None
