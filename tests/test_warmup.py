@@ -8,7 +8,9 @@ import sys
 
 
 def test_the_warm_up_runs_every_step_and_says_so():
-    done = subprocess.run([sys.executable, "-m", "lightprobe.warmup"], capture_output=True, text=True, timeout=600)
+    # From an empty numba cache this compiles every kernel: 3–5 minutes on 2 idle cores, more on a busy machine. The
+    # timeout only ends a hang; it is not a speed the compile must reach.
+    done = subprocess.run([sys.executable, "-m", "lightprobe.warmup"], capture_output=True, text=True, timeout=3600)
     assert done.returncode == 0, done.stderr
     steps = [line for line in done.stderr.splitlines() if "compiling kernels (" in line]
     assert [s.split("(")[1].rstrip(")") for s in steps] == ["maps", "lights", "renders", "radiance"]
