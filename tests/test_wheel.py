@@ -17,6 +17,10 @@ import pytest
 
 from conftest import ROOT
 
+# One worker builds the wheel: `pip wheel .` builds inside the checkout (build/, the egg-info), and two builds at
+# once in one tree break each other.
+pytestmark = pytest.mark.xdist_group("wheel")
+
 # The extras' modules, which a core-only installation lacks: each must be reported as the extra to install.
 MISSING_EXTRAS = [
     (["render", "-o", "{out}.png", "--size", "8x8"], "trimesh", "render"),
