@@ -31,10 +31,17 @@ MISSING_EXTRAS = [
 
 @pytest.fixture(scope="module")
 def wheel(tmp_path_factory) -> Path:
-    """A wheel of this checkout, built as `pip wheel .` builds it (isolated; setup.py copies three.js in)."""
-    out = tmp_path_factory.mktemp("wheel")
+    """A wheel of this checkout, built as `pip wheel .` builds it (isolated; setup.py copies three.js in), from a
+    copy of the tree: setuptools builds inside the source folder (build/, the egg-info), where an earlier or a
+    parallel build's leftovers break it."""
+    import shutil
+
+    out, tree = tmp_path_factory.mktemp("wheel"), tmp_path_factory.mktemp("tree") / "lightprobe"
+    shutil.copytree(ROOT, tree, ignore=shutil.ignore_patterns(
+        ".git", ".venv", "node_modules", "build", "dist", "*.egg-info", "__pycache__", ".pytest_cache", ".hypothesis",
+        "lightprobe-demo", "site"))
     res = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--disable-pip-version-check", "-q",
-                          "-w", str(out), str(ROOT)], capture_output=True, text=True, timeout=900)
+                          "-w", str(out), str(tree)], capture_output=True, text=True, timeout=900)
     assert res.returncode == 0, res.stderr[-3000:]
     (built,) = out.glob("lightprobe-*.whl")
     return built
