@@ -37,9 +37,14 @@ def wheel(tmp_path_factory) -> Path:
     import shutil
 
     out, tree = tmp_path_factory.mktemp("wheel"), tmp_path_factory.mktemp("tree") / "lightprobe"
-    shutil.copytree(ROOT, tree, ignore=shutil.ignore_patterns(
-        ".git", ".venv", "node_modules", "build", "dist", "*.egg-info", "__pycache__", ".pytest_cache", ".hypothesis",
-        "lightprobe-demo", "site"))
+    anywhere = shutil.ignore_patterns(".git", ".venv", "node_modules", "*.egg-info", "__pycache__", ".pytest_cache",
+                                      ".hypothesis")
+
+    def ignore(folder, names):  # build/ and dist/ only at the top: three.js has a build/ folder of its own
+        top = {"build", "dist", "site", "lightprobe-demo"} if os.path.samefile(folder, ROOT) else set()
+        return set(anywhere(folder, names)) | (top & set(names))
+
+    shutil.copytree(ROOT, tree, ignore=ignore)
     res = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--disable-pip-version-check", "-q",
                           "-w", str(out), str(tree)], capture_output=True, text=True, timeout=900)
     assert res.returncode == 0, res.stderr[-3000:]
