@@ -196,6 +196,29 @@ cli.entry()
     assert marker.read_text() == "ran" and not earlier.exists()
 
 
+def test_the_command_keeps_its_status_when_the_runtime_would_abort_at_teardown(tmp_path):
+    """A command that never ran a kernel still ends with main's status: finalisation that would abort the process
+    (as Arrow's Parquet reader threads can while their pool is torn down) never runs, the atexit handlers registered
+    during the command do."""
+    marker = tmp_path / "handler-ran"
+    program = f"""
+import atexit, os, sys
+atexit.register(os.abort)  # stands in for a native library that aborts as the interpreter tears it down
+import lightprobe.cli as cli
+
+def fake_main():
+    atexit.register(lambda: open({str(marker)!r}, "w").write("ran"))
+    print("done")
+    return 0
+
+cli.main = fake_main
+cli.entry()
+"""
+    res = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True)
+    assert res.returncode == 0 and res.stdout == "done\n", (res.returncode, res.stderr)
+    assert marker.read_text() == "ran"
+
+
 def test_the_console_script_is_the_quick_entry():
     text = (Path(__file__).resolve().parents[1] / "pyproject.toml").read_text()
     assert 'lightprobe = "lightprobe.cli:entry"' in text

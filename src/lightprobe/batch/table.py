@@ -320,7 +320,9 @@ def _read_checked(path: Path, schema_for, what: str, remedy: str):
             schema = schema_for(found)
             _check_columns(found, schema)
             f.seek(0)
-            return pq.read_table(f, schema=schema)
+            # One thread: a batch table is small, and no Arrow reader thread is left running when a program that
+            # called this exits (Arrow's pool can abort the process if one is).
+            return pq.read_table(f, schema=schema, use_threads=False)
     except (pa.ArrowException, OSError, ValueError) as e:
         reason = " ".join(str(e).split())[:200]
         raise UsageError(f"{path} {what} ({reason}): {remedy}") from None

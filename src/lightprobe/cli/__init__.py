@@ -145,18 +145,20 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def entry() -> None:
-    """The ``lightprobe`` command: :func:`main`, then a quick exit with its status.
+    """The ``lightprobe`` command: :func:`main`, then an immediate exit with its status.
 
-    Once numba has run a kernel, Python's own finalisation (module teardown, LLVM's static objects) takes
-    0.2–0.3 s after the work is done — a fifth of a ``lightprobe lights`` run, paid by every command in a
-    shell loop. The command skips it with ``os._exit``: by then every output is written (atomically) and the
-    standard streams are flushed here, and the atexit handlers registered after this one — numba's,
-    tempfile's, multiprocessing's — have run, as handlers run last-registered first. ``main`` called from
-    Python (tests, other programs) is left to exit normally."""
+    Once the command returns, every output is written (atomically) and the standard streams are flushed here; what
+    the interpreter's finalisation would do after that can only change the exit status, never the result. Two
+    libraries make it do so: Arrow's reader threads (``batch``'s Parquet tables) can still be alive when the C++
+    runtime tears their pool down, which aborts the process with SIGABRT ("terminate called without an active
+    exception", apache/arrow#34314), and once numba has run a kernel, module teardown and LLVM's static objects take
+    0.2–0.3 s, a fifth of a ``lightprobe lights`` run. So the command leaves with ``os._exit`` from an atexit handler
+    registered first, which runs last: the handlers registered after it (numba's, tempfile's, multiprocessing's)
+    have run by then. ``main`` called from Python (tests, other programs) is left to exit normally."""
     code = None
 
     def leave() -> None:
-        if code is not None and "numba" in sys.modules:
+        if code is not None:
             for stream in (sys.stdout, sys.stderr):
                 with contextlib.suppress(Exception):
                     stream.flush()
