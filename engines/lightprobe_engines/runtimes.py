@@ -34,7 +34,7 @@ def launch_chromium(playwright):
     """Debian's Chromium, headless, through a started Playwright (never a browser Playwright downloads)."""
     return playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
-PACKAGES = ("three", "@babylonjs/core", "@babylonjs/loaders", "filament", "esbuild")  # pinned in engines/package.json
+PACKAGES = ("three", "@babylonjs/core", "@babylonjs/loaders", "filament", "esbuild", "ktx-parse")  # pinned in engines/package.json
 BABYLON_PAGE = "babylon_page.mjs"  # babylon.html's script, served bundled from engines/dist (see babylon_bundle)
 
 
@@ -164,6 +164,27 @@ def babylon(jobs: dict) -> dict:
     if res.returncode != 0:
         raise RuntimeError(f"Babylon.js in Node failed: {res.stderr[-2000:]}")
     return json.loads(res.stdout)
+
+
+def _node_json(script: str, paths, what: str):
+    res = subprocess.run(["node", str(ENGINES / script), *map(str, paths)], capture_output=True, text=True,
+                         cwd=ENGINES, timeout=300)
+    if res.returncode != 0:
+        raise RuntimeError(f"{what} in Node failed: {res.stderr[-2000:]}")
+    return json.loads(res.stdout)
+
+
+def ktx_parse(paths) -> list[dict]:
+    """Each KTX2 file as npm ktx-parse reads it (../engines/ktx_parse_check.mjs: header, descriptor, key/values and
+    the levels' stored bytes in base64)."""
+    return _node_json("ktx_parse_check.mjs", paths, "ktx-parse")
+
+
+def filament_ktx1(paths) -> list[dict]:
+    """Each KTX1 file as Filament's web build parses it in Node (../engines/filament_ktx1_check.mjs: Ktx1Bundle's
+    info, levels, cube flag, the "sh" metadata and the 27 numbers createIblFromKtx1 takes from it, each level's
+    blob in base64)."""
+    return _node_json("filament_ktx1_check.mjs", paths, "Filament's Ktx1Bundle")
 
 
 # ---- comparisons ----------------------------------------------------------------------------------------------------
