@@ -10,6 +10,7 @@ interior, and two synthetic single spots.
 from __future__ import annotations
 
 import json
+import shutil
 import warnings
 
 import numpy as np
@@ -213,17 +214,18 @@ CONTAINER_SIZE = 64  # specular cube of the container files (the diffuse checks 
 
 @pytest.fixture(scope="module")
 def containers(probes):
-    """Each probe as lightprobe's Babylon .env and glTF (.glb) files, beside the panoramas the browser serves."""
-    from lightprobe.exports.containers import babylon_env, glb, gltf_ibl
+    """Each probe baked for Babylon and glTF (``lightprobe.bake``: the .env and the .glb a user gets), beside the
+    panoramas the browser serves."""
+    from lightprobe.bake import BakeOptions, bake
 
     folder, files = probes
+    options = BakeOptions(("babylon", "gltf"), size=CONTAINER_SIZE, skybox_size=16)
     for name, path in files.items():
-        env = read_envmap(path)
-        sh = project(env, 2)
         with warnings.catch_warnings():  # the sunny probes' RGBD clipping warning: measured in test_containers
             warnings.simplefilter("ignore", LightprobeWarning)
-            (folder / f"{name}.env").write_bytes(babylon_env(env, sh, CONTAINER_SIZE))
-            (folder / f"{name}.glb").write_bytes(glb(*gltf_ibl(env, sh, CONTAINER_SIZE)))
+            baked = bake(read_envmap(path), folder / f"{name}-bake", options)
+        shutil.copyfile(baked["babylon"] / "environment.env", folder / f"{name}.env")
+        shutil.copyfile(baked["gltf"] / "environment.glb", folder / f"{name}.glb")
     return folder
 
 

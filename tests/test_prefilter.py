@@ -10,25 +10,9 @@ from lightprobe.maps import EnvMap, read_envmap, resample
 from lightprobe.util.errors import UsageError
 from lightprobe.maps.frames import BABYLON
 from lightprobe.maps.layouts import CUBE, LATLONG
-from lightprobe.glossy.prefilter import babylon_alphas, ggx_d, lobe_integral, prefilter_cube, split_peaks
+from lightprobe.glossy.prefilter import (babylon_alphas, brute_force_prefiltered, ggx_d, lobe_integral, prefilter_cube,
+                                         split_peaks)
 
-
-
-def brute_force_prefiltered(env: EnvMap, r: np.ndarray, alpha: float) -> np.ndarray:
-    """P_α at unit world directions r (n, 3) by direct summation over every pixel of ``env``, in numpy: the
-    reference, independent of the library's compiled sums (exact up to the map's own pixel size; n × pixels)."""
-    d = env.directions().reshape(-1, 3)
-    omega = env.solid_angles().reshape(-1)
-    values = env.data.reshape(-1, 3).astype(np.float64)
-    out = np.empty((len(r), 3))
-    for start in range(0, len(r), 64):
-        rr = r[start:start + 64]
-        h = rr[:, None, :] + d[None, :, :]
-        h /= np.maximum(np.linalg.norm(h, axis=-1, keepdims=True), 1e-12)
-        cos_l = np.maximum(rr @ d.T, 0.0)
-        w = ggx_d(np.sum(h * rr[:, None, :], axis=-1), alpha) * cos_l * omega
-        out[start:start + 64] = (w @ values) / np.maximum(w.sum(axis=1), 1e-30)[:, None]
-    return out
 
 
 def test_babylon_roughness_per_mip_inverts_its_shader_lod():

@@ -18,6 +18,7 @@ FLOORS = {
     "lights": 3, "glossy": 3,        # paper 3: area lights + ambient; paper 2: BRDFs, radiance maps, RS-IBR
     "exports": 4,                    # what engines load
     "render": 5,                     # scenes, the renderer, Mitsuba's ground truth
+    "bake": 5,                       # every engine's files from one working form
     "viewer": 6, "batch": 6,         # the WebGL viewer; datasets
     "warmup": 6,                     # compiling the kernels once
     "report": 7,                     # the demo

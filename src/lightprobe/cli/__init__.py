@@ -24,8 +24,8 @@ from ..util.errors import LightprobeError
 from .common import Parser
 
 # The commands, each a module of this package named as the command.
-COMMANDS = ("info", "convert", "sh", "irradiance", "lights", "radiance", "error", "export", "design", "render",
-            "compare", "view", "batch", "demo")
+COMMANDS = ("info", "convert", "sh", "irradiance", "lights", "radiance", "error", "export", "bake", "design",
+            "render", "compare", "view", "batch", "demo")
 
 
 def command_module(name: str):

@@ -311,7 +311,45 @@ def gltf_ibl(env: EnvMap, sh: SHCoeffs, size: int = 256, scaling: str = "irradia
         ``size`` is not a power of two up to 1024, ``scaling`` is unknown, or ``sh`` holds irradiance or stops
         below band 2.
     """
-    cube = prefilter_cube(env, size, babylon_alphas(size, 1.0), frame)
+    return gltf_ibl_document(prefilter_cube(env, size, gltf_alphas(size), frame), sh, scaling)
+
+
+def gltf_alphas(size: int) -> list[float]:
+    """The α of each mip of a ``size`` cube as Babylon's glTF loader reads a full ``specularImages`` chain.
+
+    Parameters
+    ----------
+    size : int
+        Face size of level 0, a power of two.
+
+    Returns
+    -------
+    list of float
+        α_i = 2^i/size (lodGenerationScale 1), the first 0 (the mirror).
+    """
+    return babylon_alphas(size, 1.0)
+
+
+def gltf_ibl_document(cube: PrefilteredCube, sh: SHCoeffs, scaling: str = "irradiance") -> tuple[dict, list[bytes]]:
+    """The glTF document and PNGs of :func:`gltf_ibl` for a chain already prefiltered.
+
+    Parameters
+    ----------
+    cube : PrefilteredCube
+        The full GGX chain at :func:`gltf_alphas`, in the frame of the coefficients.
+    sh : SHCoeffs
+        Radiance coefficients, l_max ≥ 2.
+    scaling : str, default "irradiance"
+        ``irradiance`` or ``pi-radiance``.
+
+    Returns
+    -------
+    document : dict
+        The glTF 2.0 JSON document; its ``images`` have a MIME type but no data yet.
+    images : list of bytes
+        The RGBD PNGs, six per mip, in the order of the document's ``images``.
+    """
+    size, frame = cube.size, cube.frame
     warn_if_clipped(cube)
     pngs = face_pngs(cube, gamma_space=True)
     indices = [[6 * i + f for f in range(6)] for i in range(len(pngs))]

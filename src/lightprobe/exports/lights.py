@@ -364,7 +364,7 @@ def gltf_lights(lights: LightSet, specular_size: int = 32) -> tuple[dict, list[b
     from ..maps.layouts import LATLONG
 
     grid = LATLONG.grid_shape(32)
-    found = engine_lights(lights, GLTF_NODES)  # lights, or an ambient, too large for glTF: refused before the cube
+    engine_lights(lights, GLTF_NODES)  # lights, or an ambient, too large for glTF: refused before the cube
     gltf_coefficients(ambient_sh(lights, []))
     if lights.ambient is not None:
         with np.errstate(over="ignore", invalid="ignore"):
@@ -373,6 +373,34 @@ def gltf_lights(lights: LightSet, specular_size: int = 32) -> tuple[dict, list[b
     else:
         radiance = np.zeros(grid + (3,))
     document, images = gltf_ibl(EnvMap(radiance.astype(np.float32), LATLONG), ambient_sh(lights, []), specular_size)
+    return add_gltf_lights(document, lights), images
+
+
+def add_gltf_lights(document: dict, lights: LightSet) -> dict:
+    """Add the lights to a glTF document as ``KHR_lights_punctual`` directional lights, one node each.
+
+    Each light's ``intensity`` is E⊥ in lux and its ``color`` linear; its node's ``rotation`` turns the light's −Z
+    onto its travel direction in :data:`GLTF_NODES`; the nodes become the first scene's ``nodes``.
+
+    Parameters
+    ----------
+    document : dict
+        A glTF 2.0 document with ``extensionsUsed``, ``extensions`` and ``scenes`` (as
+        :func:`lightprobe.exports.containers.gltf_ibl` makes it); changed in place.
+    lights : LightSet
+        The lights (world frame).
+
+    Returns
+    -------
+    dict
+        ``document``, with the lights.
+
+    Raises
+    ------
+    InputError
+        A light's intensity is too large for glTF's 32-bit floats.
+    """
+    found = engine_lights(lights, GLTF_NODES)
     document["extensionsUsed"].append("KHR_lights_punctual")
     document["extensions"]["KHR_lights_punctual"] = {"lights": [
         {"type": "directional", "name": f"lightprobe light {k + 1}", "color": light["colour"],
@@ -380,7 +408,7 @@ def gltf_lights(lights: LightSet, specular_size: int = 32) -> tuple[dict, list[b
     document["nodes"] = [{"name": f"lightprobe light {k + 1}", "rotation": _quaternion_from_minus_z(light["travel"]),
                           "extensions": {"KHR_lights_punctual": {"light": k}}} for k, light in enumerate(found)]
     document["scenes"][0]["nodes"] = list(range(len(found)))
-    return document, images
+    return document
 
 
 def _quaternion_from_minus_z(travel) -> list[float]:

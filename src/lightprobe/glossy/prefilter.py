@@ -410,6 +410,40 @@ def prefilter_cube(env: EnvMap, size: int, alphas: list[float] | None = None, fr
     return PrefilteredCube(tuple(levels), tuple(float(a) for a in alphas), frame)
 
 
+def brute_force_prefiltered(env: EnvMap, r: np.ndarray, alpha: float) -> np.ndarray:
+    """P_α at unit directions ``r`` by direct summation over every pixel of ``env``: the reference for the chains.
+
+    Plain numpy, independent of the compiled and sampled sums :func:`prefilter_cube` uses; exact up to the map's own
+    pixel size (a lobe narrower than a pixel sees the pixel). Costs len(r) × pixels kernel evaluations.
+
+    Parameters
+    ----------
+    env : EnvMap
+        Radiance, any layout; ``r`` is in the frame of its directions.
+    r : numpy.ndarray
+        (n, 3) unit directions (normal = view = r).
+    alpha : float
+        GGX α = roughness², > 0.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n, 3) float64 prefiltered radiance P_α(r) (the module docstring's definition).
+    """
+    d = env.directions().reshape(-1, 3)
+    omega = env.solid_angles().reshape(-1)
+    values = env.data.reshape(-1, 3).astype(np.float64)
+    out = np.empty((len(r), 3))
+    for start in range(0, len(r), 64):
+        rr = r[start:start + 64]
+        h = rr[:, None, :] + d[None, :, :]
+        h /= np.maximum(np.linalg.norm(h, axis=-1, keepdims=True), 1e-12)
+        cos_l = np.maximum(rr @ d.T, 0.0)
+        w = ggx_d(np.sum(h * rr[:, None, :], axis=-1), alpha) * cos_l * omega
+        out[start:start + 64] = (w @ values) / np.maximum(w.sum(axis=1), 1e-30)[:, None]
+    return out
+
+
 def prefilter_memory(size: int) -> int:
     """Bytes :func:`prefilter_cube` needs at most for a ``size`` cube, beyond the map and the process.
 

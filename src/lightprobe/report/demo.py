@@ -12,8 +12,6 @@ one-time compilation of the numba kernels is measured first and reported on its 
 from __future__ import annotations
 
 import contextlib
-import os
-import secrets
 import shutil
 import time
 from pathlib import Path
@@ -21,7 +19,7 @@ from pathlib import Path
 from ..maps import EnvMap
 from ..maps.tonemap import auto_exposure
 from ..util.errors import InputError
-from ..util.files import sweep_stale_temporaries, write_text
+from ..util.files import move_folder_into_place, sweep_stale_temporaries, temp_path_for, write_text
 from ..util.progress import track
 from .batch import section_batch
 from .engines import section_engines, section_exports
@@ -83,34 +81,18 @@ def check_report_folder(out: Path, force: bool = False) -> None:
         raise InputError(f"cannot write the report into {out}: folder {parent} does not exist")
 
 
-def _move_into_place(built: Path, out: Path) -> None:
-    """Put the finished folder ``built`` at ``out``; an old ``out`` is moved aside first and removed last."""
-    old = None
-    if out.exists():
-        old = out.with_name(f".{out.name}.lp{os.getpid()}-{secrets.token_hex(4)}.tmp")
-        os.replace(out, old)
-    try:
-        os.replace(built, out)
-    except OSError:
-        if old is not None:
-            os.replace(old, out)
-        raise
-    if old is not None:
-        shutil.rmtree(old, ignore_errors=True)
-
-
 def run_demo(env: EnvMap, out: Path, probe_name: str | None = None, force: bool = False) -> Path:
     """Write the report for ``env`` into folder ``out`` (see the module docstring); returns the path of index.html."""
     out = Path(out)
     check_report_folder(out, force)
     parent = out.parent if str(out.parent) else Path(".")
     sweep_stale_temporaries(parent)
-    building = parent / f".{out.name}.lp{os.getpid()}-{secrets.token_hex(4)}.tmp"
+    building = temp_path_for(out)
     building.mkdir()
     try:
         (building / MARKER).write_text("a lightprobe demo report; lightprobe demo may replace this folder\n")
         _write_report(env, building, probe_name)
-        _move_into_place(building, out)
+        move_folder_into_place(building, out)
     finally:
         with contextlib.suppress(OSError):
             shutil.rmtree(building)

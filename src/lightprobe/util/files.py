@@ -131,6 +131,33 @@ def sweep_stale_temporaries(folder: Path, naming: re.Pattern = _TEMP_NAME) -> li
     return removed
 
 
+def move_folder_into_place(built: Path, out: Path) -> None:
+    """Put the finished folder ``built`` at ``out``; an existing ``out`` is moved aside first and removed last.
+
+    If the move fails, the old ``out`` is put back. ``built`` and ``out`` must be on one file system (make ``built``
+    beside ``out``: :func:`temp_path_for`).
+
+    Parameters
+    ----------
+    built : Path
+        The complete new folder.
+    out : Path
+        Where it goes.
+    """
+    old = None
+    if out.exists():
+        old = temp_path_for(out)
+        os.replace(out, old)
+    try:
+        os.replace(built, out)
+    except OSError:
+        if old is not None:
+            os.replace(old, out)
+        raise
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+
+
 def _same_file(a: Path, b: Path) -> bool:
     try:
         return os.path.samefile(a, b)
