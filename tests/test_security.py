@@ -13,7 +13,6 @@ import socket
 import struct
 import time
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -54,9 +53,9 @@ def test_dask_local_cluster_refuses_a_client_without_its_credentials(dask_pool, 
 
     for scheme, security in (("tcp://", None), ("tls://", Security.temporary())):  # none, or credentials of its own
         start = time.monotonic()
-        with pytest.raises(Exception):  # noqa: B017 - refused in whichever way Dask reports it
-            with Client(scheme + address.split("://", 1)[1], timeout="10s", security=security) as stranger:
-                stranger.submit(payload, pure=False).result(timeout=10)
+        with (pytest.raises(Exception),  # noqa: B017 - refused in whichever way Dask reports it
+              Client(scheme + address.split("://", 1)[1], timeout="10s", security=security) as stranger):
+            stranger.submit(payload, pure=False).result(timeout=10)
         assert time.monotonic() - start < DEADLINE
     assert not planted.exists()
 
@@ -117,7 +116,7 @@ def raw(server: ViewServer, data: bytes) -> tuple[int, dict[str, str], bytes]:
             answer += chunk
     head, _, body = answer.partition(b"\r\n\r\n")
     lines = head.decode("latin-1").split("\r\n")
-    headers = dict((k.strip().lower(), v.strip()) for k, _, v in (line.partition(":") for line in lines[1:]))
+    headers = {k.strip().lower(): v.strip() for k, _, v in (line.partition(":") for line in lines[1:])}
     return int(lines[0].split()[1]), headers, body
 
 
@@ -203,7 +202,7 @@ def test_view_serves_a_request_while_more_idle_clients_than_its_limit_are_connec
         finally:
             for s in idle:
                 s.close()
-    out, err = capfd.readouterr()
+    err = capfd.readouterr().err
     assert "Traceback" not in err and "Exception" not in err, err[-3000:]
 
 
