@@ -267,7 +267,8 @@ def test_server_serves_the_page_with_csp_and_mime_types(server):
     "http://example.com/bake/bake.json", "*"])
 def test_server_refuses_traversal_listings_and_strays(server, path):
     status, headers, body = request(server, "GET", path)
-    assert status == 404 and b"secret" not in body and b"<a href" not in body, (path, status)
+    expected = 421 if path.startswith("http://") else 404  # an absolute URL names its host: another one here
+    assert status == expected and b"secret" not in body and b"<a href" not in body, (path, status)
 
 
 @pytest.mark.parametrize("method", ["POST", "PUT", "DELETE", "PATCH", "OPTIONS"])

@@ -223,47 +223,82 @@ class LocalPool:
 class DaskPool:
     """Dask distributed: an existing scheduler, or a ``LocalCluster`` of ``local`` single-threaded worker processes.
 
-    The local cluster listens on loopback. Workers read their inputs themselves; only paths go out and rows come back.
+    Whoever can submit to a scheduler runs code as its workers, so the local cluster is not open to the machine: it
+    listens on loopback with mutual TLS, its credentials made for this run and held in memory only
+    (:meth:`distributed.security.Security.temporary`); a client without them — another local user — cannot connect.
+    An existing scheduler is reached with the TLS settings of Dask's own configuration (``distributed.comm.tls``),
+    if any. Workers read their inputs themselves; only paths go out and rows come back.
 
     Parameters
     ----------
     scheduler : str or None
-        Address of a running scheduler (e.g. ``tcp://host:8786``), used when ``local`` is not given.
+        Address of a running scheduler (e.g. ``tcp://host:8786``, ``tls://host:8786``), used when ``local`` is not
+        given.
     local : int or None
-        Start a local cluster of this many worker processes on 127.0.0.1 (one thread each, no dashboard, with
+        Start a local cluster of this many worker processes on 127.0.0.1 (one thread each, with
         :data:`WORKER_ENVIRONMENT`) and use it.
     timeout : float
         Seconds to wait for the scheduler. Default :data:`DASK_TIMEOUT` (10).
+    dashboard : bool
+        Give the local cluster Dask's dashboard on 127.0.0.1 (a free port, in ``dashboard``). Default False: none.
+
+    Attributes
+    ----------
+    dashboard : str or None
+        The dashboard's URL, or None.
 
     Raises
     ------
     UsageError
-        dask.distributed is not installed, or the scheduler cannot be reached within ``timeout``.
+        dask.distributed (or, for ``local``, cryptography; for ``dashboard``, bokeh) is not installed, or the
+        scheduler cannot be reached within ``timeout``.
     """
 
     name = "Dask distributed"
 
-    def __init__(self, scheduler: str | None = None, local: int | None = None, timeout: float = DASK_TIMEOUT):
+    def __init__(self, scheduler: str | None = None, local: int | None = None, timeout: float = DASK_TIMEOUT,
+                 dashboard: bool = False):
         try:
             from dask.distributed import Client, LocalCluster
+            from distributed.security import Security
         except ImportError:
             raise UsageError("--scheduler and --dask-local need the optional 'distributed' package: "
                              "pip install 'lightprobe[batch]'") from None
         import logging
 
-        self.cluster = None
+        import dask
+
+        self.cluster, self.dashboard = None, None
         if local:
-            self.cluster = LocalCluster(n_workers=local, threads_per_worker=1, processes=True, host="127.0.0.1",
-                                        dashboard_address=None, silence_logs=logging.ERROR, env=WORKER_ENVIRONMENT)
+            security = _temporary_security()
+            if dashboard:
+                _need_bokeh()
+            # Dask's scheduler and workers always listen for HTTP too (status pages, metrics: plain HTTP, no
+            # credentials); with no routes they serve nothing until their listeners are closed below.
+            routes = {"distributed.worker.http.routes": []} | ({} if dashboard else
+                                                               {"distributed.scheduler.http.routes": []})
+            with dask.config.set(routes):
+                self.cluster = LocalCluster(n_workers=local, threads_per_worker=1, processes=True,
+                                            host="127.0.0.1", dashboard_address=None, security=security,
+                                            scheduler_kwargs={"dashboard": dashboard, "dashboard_address":
+                                                              "127.0.0.1:0"},  # a free port, never 8787
+                                            silence_logs=logging.ERROR, env=WORKER_ENVIRONMENT)
             scheduler = self.cluster.scheduler_address
+            self.dashboard = self.cluster.dashboard_link if dashboard else None
+        else:
+            security = Security()  # what Dask's configuration says: TLS files, require-encryption
         try:
             if not local:  # Dask's client waits on a silent peer for ever; first a handshake within the timeout
-                _handshake(scheduler, timeout)
-            self.client = Client(scheduler, timeout=f"{timeout}s")
+                _handshake(scheduler, timeout, security.get_connection_args("client"))
+            self.client = Client(scheduler, timeout=f"{timeout}s", security=security)
         except (OSError, TimeoutError, ValueError) as e:
             self.close()
             raise UsageError(f"cannot reach the Dask scheduler at {scheduler} within {timeout:g} s: "
                              f"{' '.join(str(e).split())[:200] or type(e).__name__}") from None
+        if local:
+            self.client.run(_close_http)
+            if not dashboard:
+                self.client.run_on_scheduler(_close_http)
         self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
 
     def results(self, paths: list[str], options: JobOptions, out: Path, skip: frozenset):
@@ -322,9 +357,36 @@ class DaskPool:
                     pass
 
 
-def _handshake(address: str, timeout: float) -> None:
+def _close_http(dask_worker=None, dask_scheduler=None) -> None:
+    """Close the HTTP listener of a local cluster's worker or scheduler (run there by Dask, on its event loop)."""
+    (dask_worker or dask_scheduler).http_server.stop()
+
+
+def _temporary_security():
+    """Mutual-TLS credentials for one local cluster, in memory only (:meth:`distributed.security.Security.temporary`).
+    """
+    from distributed.security import Security
+
+    try:
+        return Security.temporary()
+    except ImportError:
+        raise UsageError("--dask-local needs the optional 'cryptography' package (the cluster's TLS credentials): "
+                         "pip install 'lightprobe[batch]'") from None
+
+
+def _need_bokeh() -> None:
+    """Dask's dashboard needs bokeh, which no extra installs (only ``--dashboard`` uses it); without it Dask only logs
+    a warning and serves nothing."""
+    from importlib.util import find_spec
+
+    if find_spec("bokeh") is None:
+        raise UsageError("--dashboard needs the 'bokeh' package (Dask's dashboard): pip install 'bokeh>=3.1'")
+
+
+def _handshake(address: str, timeout: float, connection_args: dict | None = None) -> None:
     """Open a Dask connection to ``address`` and exchange the handshake, all within ``timeout`` seconds, then close it.
 
+    ``connection_args`` are the client's TLS settings (:meth:`distributed.security.Security.get_connection_args`).
     Anything else at that address — a server that accepts and says nothing, one that answers HTTP, a closed port —
     is an :class:`OSError` (a :class:`TimeoutError` past the deadline), never a wait without end or a traceback."""
     import asyncio
@@ -332,7 +394,7 @@ def _handshake(address: str, timeout: float) -> None:
     from distributed.comm import connect
 
     async def exchange():
-        comm = await connect(address, timeout=timeout)
+        comm = await connect(address, timeout=timeout, **(connection_args or {}))
         await comm.close()
 
     try:

@@ -31,7 +31,10 @@ def register(sub) -> None:
     where.add_argument("--workers", type=Number(int, 1, 1024), help="local worker processes (default: the cores)")
     where.add_argument("--scheduler", metavar="ADDRESS", help="a Dask distributed scheduler (tcp://host:port)")
     where.add_argument("--dask-local", type=Number(int, 1, 256), metavar="N",
-                       help="start a Dask LocalCluster of N workers on 127.0.0.1 for this batch")
+                       help="start a Dask LocalCluster of N workers on 127.0.0.1 for this batch (TLS, its "
+                            "credentials made for this run: no other client can submit work to it)")
+    p.add_argument("--dashboard", action="store_true",
+                   help="with --dask-local: serve Dask's dashboard on 127.0.0.1 and print its URL (needs bokeh)")
     add_option(p, "--timeout", type=Number(float, 0.1, 3600), default=10.0,
                help="seconds to wait for the Dask scheduler")
     add_option(p, "--chunk", type=Number(int, 1, 100000), default=64,
@@ -55,6 +58,8 @@ def run(args) -> None:
         return
     if args.out is None:
         refuse("--out DIR is needed")
+    if args.dashboard and not args.dask_local:
+        refuse("--dashboard goes with --dask-local (a scheduler of your own serves its own dashboard)")
     jobs = tuple(j.strip() for j in args.jobs.split(",") if j.strip())
     bad = [j for j in jobs if j not in JOBS]
     if bad or not jobs:
@@ -69,8 +74,10 @@ def run(args) -> None:
                          radiance_size=args.size)
     inputs = expand_inputs(args.inputs, exclude=args.out)
     check_out(args.out, options, args.resume, args.force)  # before a cluster is started or reached
-    executor = (DaskPool(args.scheduler, args.dask_local, args.timeout) if args.scheduler or args.dask_local
-                else LocalPool(args.workers or os.cpu_count() or 1))
+    executor = (DaskPool(args.scheduler, args.dask_local, args.timeout, args.dashboard)
+                if args.scheduler or args.dask_local else LocalPool(args.workers or os.cpu_count() or 1))
+    if getattr(executor, "dashboard", None):
+        print(f"lightprobe batch: Dask dashboard {executor.dashboard}", file=sys.stderr, flush=True)
     try:
         summary = _with_progress(lambda progress: run_batch(inputs, args.out, options, executor, args.resume,
                                                             args.force, args.chunk, progress=progress), len(inputs))

@@ -10,7 +10,16 @@ answers GET and HEAD (any other method 405), lists no folder, and serves only
 * ``/bake/…`` — regular files inside the bake folder, reached without ``..``, ``.``-prefixed or empty segments
   (after percent-decoding), backslashes or NUL, and whose real path (symlinks followed) stays inside the folder.
 
-Everything else is 404. Every answer carries the CSP, ``nosniff`` and a MIME type from :data:`MIME`.
+Everything else is 404. A request whose ``Host`` is not the address printed (``127.0.0.1``, ``localhost`` or
+``[::1]`` with the served port) is 421 Misdirected Request, so a page on another origin that rebinds its DNS name
+to 127.0.0.1 reads nothing. Every answer — the standard library's own errors (400, 501, 505 …) included — carries
+the CSP, ``nosniff`` and a MIME type from :data:`MIME`.
+
+One client cannot starve the server: at most :data:`MAX_CONNECTIONS` connections are served at once (one request
+each); a connection over the limit waits for a free slot in the listen queue, and is closed if none frees within
+the idle timeout. A connection silent for :data:`IDLE_TIMEOUT` seconds is closed; files are streamed in chunks of
+:data:`CHUNK` bytes; a client's fault (a reset, a broken pipe, a timeout) prints nothing.
+
 The static export writes the same tree (``index.html``, ``static/``, ``modules/``, ``bake/``) into a folder, so the
 page is the same file whether served here or from any static host.
 """
@@ -23,12 +32,15 @@ import http.server
 import os
 import re
 import shutil
+import stat
+import sys
 import threading
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from urllib.parse import unquote
 
-from ..util.errors import LightprobeError, UsageError
+from ..util.errors import LightprobeError, LightprobeWarning, UsageError
 
 STATIC = Path(__file__).resolve().parent / "static"
 ENTRY_MODULES = ("build/three.module.js", "examples/jsm/controls/OrbitControls.js",
@@ -38,6 +50,11 @@ MIME = {".html": "text/html; charset=utf-8", ".js": "text/javascript; charset=ut
         ".png": "image/png", ".exr": "image/x-exr", ".hdr": "image/vnd.radiance"}
 _IMPORT = re.compile(r"""(?:from|import)\s*['"](\.{1,2}/[^'"]+)['"]""")
 _IMPORTMAP = re.compile(r'<script type="importmap">(.*?)</script>', re.S)
+MAX_CONNECTIONS = 32   # served at once: a page loads its ~40 files over a handful of connections
+IDLE_TIMEOUT = 5.0     # seconds a connection may stay silent (reading the request, or the client not reading)
+CHUNK = 1 << 16        # bytes read from a file and sent at a time
+# A client's fault, not the server's: nothing to print.
+_CLIENT_FAULTS = (ConnectionError, TimeoutError)
 
 
 VENDOR = Path(__file__).resolve().parent / "vendor" / "three"
@@ -145,6 +162,67 @@ def safe_file(root: Path, rel: str) -> Path | None:
     return real
 
 
+def allowed_hosts(port: int) -> frozenset[str]:
+    """The ``Host`` header values the server answers: the loopback names with ``port``, lower case.
+
+    Parameters
+    ----------
+    port : int
+        The port served.
+
+    Returns
+    -------
+    frozenset of str
+        ``127.0.0.1:PORT``, ``localhost:PORT`` and ``[::1]:PORT``; for port 80 also the names without a port (what
+        a browser sends there).
+    """
+    names = ("127.0.0.1", "localhost", "[::1]")
+    return frozenset(f"{n}:{port}" for n in names) | (frozenset(names) if port == 80 else frozenset())
+
+
+class _BoundedServer(http.server.ThreadingHTTPServer):
+    """A threading HTTP server with at most ``limit`` connections at once, each timing out after ``timeout`` s idle,
+    and no traceback for a client's fault."""
+
+    daemon_threads = True
+    request_queue_size = 64
+
+    def __init__(self, address, handler, limit: int, timeout: float):
+        self.slots = threading.BoundedSemaphore(limit)
+        self.idle_timeout = timeout
+        self.closing = threading.Event()
+        super().__init__(address, handler)
+
+    def process_request(self, request, client_address):
+        # Over the limit the accepting thread waits for a slot (later clients wait in the listen queue, the
+        # kernel's bound), asking every 0.1 s whether the server is closing; a slot frees within the idle timeout
+        # unless every served client is busy, and then this connection is closed rather than waited on for ever.
+        waited = 0.0
+        while not self.slots.acquire(timeout=0.1):
+            waited += 0.1
+            if self.closing.is_set() or waited >= self.idle_timeout:
+                self.shutdown_request(request)
+                return
+        try:
+            request.settimeout(self.idle_timeout)
+            super().process_request(request, client_address)
+        except BaseException:
+            self.slots.release()
+            self.shutdown_request(request)
+            raise
+
+    def process_request_thread(self, request, client_address):
+        try:
+            super().process_request_thread(request, client_address)
+        finally:
+            self.slots.release()
+
+    def handle_error(self, request, client_address):
+        if isinstance(sys.exc_info()[1], _CLIENT_FAULTS):
+            return
+        super().handle_error(request, client_address)
+
+
 class ViewServer:
     """Serves the page and one bake folder on 127.0.0.1 (``port`` 0: a free one) from a background thread.
 
@@ -156,6 +234,10 @@ class ViewServer:
         The bake folder (:func:`lightprobe.viewer.bake.bake`), served under ``/bake/``.
     port : int
         The TCP port on 127.0.0.1; 0 (default): a free one, then in ``address`` and ``url``.
+    max_connections : int
+        Connections served at once. Default :data:`MAX_CONNECTIONS`.
+    idle_timeout : float
+        Seconds a connection may stay silent before it is closed. Default :data:`IDLE_TIMEOUT`.
 
     Raises
     ------
@@ -165,7 +247,8 @@ class ViewServer:
         The port cannot be listened on.
     """
 
-    def __init__(self, bake: Path, port: int = 0):
+    def __init__(self, bake: Path, port: int = 0, max_connections: int = MAX_CONNECTIONS,
+                 idle_timeout: float = IDLE_TIMEOUT):
         self.bake = Path(bake).resolve()
         root = three_root()
         modules = {f"modules/three/{rel}": (root / rel).resolve() for rel in module_files(root)}
@@ -173,6 +256,7 @@ class ViewServer:
         html, csp = page_html()
         fixed = {**modules, **statics}
         bake_root = self.bake
+        hosts: frozenset[str] = frozenset()  # set once the port is known
 
         class Handler(http.server.BaseHTTPRequestHandler):
             server_version = "lightprobe-view"
@@ -192,18 +276,36 @@ class ViewServer:
                     return safe_file(bake_root, rel[len("bake/"):])
                 return None
 
+            def parse_request(self) -> bool:
+                if not super().parse_request():
+                    return False
+                if self.headers.get("Host", "").strip().lower() not in hosts:
+                    self._status(421, "misdirected request: this server answers only at the address it printed")
+                    return False
+                return True
+
             def _answer(self, body_too: bool) -> None:
+                if self.request_version == "HTTP/0.9":  # it has no headers to carry the CSP
+                    return self._status(400, "bad request: HTTP/0.9")
                 target = self._target()
-                if target is None:
-                    return self._status(404, "not found")
                 if isinstance(target, bytes):
-                    body, kind = target, MIME[".html"]
-                else:
-                    body, kind = target.read_bytes(), MIME.get(target.suffix.lower(), "application/octet-stream")
-                self.send_response(200)
-                self._headers(kind, len(body))
-                if body_too:
-                    self.wfile.write(body)
+                    self.send_response(200)
+                    self._headers(MIME[".html"], len(target))
+                    if body_too:
+                        self.wfile.write(target)
+                    return
+                try:
+                    file = open(target, "rb") if target is not None else None
+                except OSError:  # gone since it was found
+                    file = None
+                if file is None:
+                    return self._status(404, "not found")
+                with file:
+                    self.send_response(200)
+                    self._headers(MIME.get(target.suffix.lower(), "application/octet-stream"),
+                                  os.fstat(file.fileno()).st_size)
+                    if body_too:
+                        shutil.copyfileobj(file, self.wfile, CHUNK)
 
             def _headers(self, kind: str, length: int) -> None:
                 self.send_header("Content-Type", kind)
@@ -216,6 +318,9 @@ class ViewServer:
 
             def _status(self, code: int, text: str, allow: bool = False) -> None:
                 body = f"{code} {text}\n".encode()
+                self.close_connection = True
+                if self.request_version == "HTTP/0.9":  # headers are written for HTTP/1.0 and later only
+                    self.request_version = "HTTP/1.0"
                 self.send_response(code)
                 if allow:
                     self.send_header("Allow", "GET, HEAD")
@@ -232,17 +337,21 @@ class ViewServer:
             def _refuse(self):
                 self._status(405, "method not allowed", allow=True)
 
+            def send_error(self, code, message=None, explain=None):
+                # The standard library's own error page (malformed request, unknown method, …): the same headers.
+                self._status(code, (message or self.responses.get(code, ("error",))[0]).lower())
+
             do_POST = do_PUT = do_DELETE = do_PATCH = do_OPTIONS = do_CONNECT = do_TRACE = _refuse
 
             def log_message(self, *args):
                 pass
 
         try:
-            self.httpd = http.server.ThreadingHTTPServer(("127.0.0.1", port), Handler)
+            self.httpd = _BoundedServer(("127.0.0.1", port), Handler, max_connections, idle_timeout)
         except OSError as e:
             raise UsageError(f"cannot listen on 127.0.0.1:{port}: {e.strerror or e}") from None
-        self.httpd.daemon_threads = True
         self.address = self.httpd.server_address[:2]
+        hosts = allowed_hosts(self.address[1])
         self.url = f"http://127.0.0.1:{self.address[1]}/"
         self._thread = threading.Thread(target=self.httpd.serve_forever, daemon=True)
         self._thread.start()
@@ -260,6 +369,7 @@ class ViewServer:
 
     def close(self) -> None:
         """Stop serving and close the listening socket (what leaving a ``with`` block does)."""
+        self.httpd.closing.set()
         self.httpd.shutdown()
         self.httpd.server_close()
 
@@ -278,7 +388,9 @@ def export_static(bake: Path, out: Path) -> Path:
     Parameters
     ----------
     bake : Path
-        The bake folder, copied whole into ``out/bake`` (symbolic links copied as the files they point to).
+        The bake folder, copied into ``out/bake``: its regular files and folders only, by the rule the server serves
+        by — a symbolic link, a name starting with ``.`` or anything else (a FIFO, a device) is left out, and a
+        :class:`~lightprobe.util.errors.LightprobeWarning` names how many.
     out : Path
         The folder to write: new, or an empty folder.
 
@@ -293,6 +405,11 @@ def export_static(bake: Path, out: Path) -> Path:
         ``out`` exists and is not an empty folder.
     LightprobeError
         The package lacks its three.js modules (:func:`three_root`).
+
+    Warns
+    -----
+    LightprobeWarning
+        Entries of the bake folder were left out (see ``bake``).
     """
     out = Path(out)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
@@ -308,7 +425,7 @@ def export_static(bake: Path, out: Path) -> Path:
         for p in STATIC.iterdir():
             if p.is_file() and p.name != "index.html":
                 shutil.copyfile(p, temp / "static" / p.name)
-        shutil.copytree(bake, temp / "bake", symlinks=False)
+        left_out = _copy_regular(Path(bake), temp / "bake")
         (temp / "index.html").write_text(page_html()[0], encoding="utf-8")
         if out.exists():
             out.rmdir()
@@ -316,4 +433,39 @@ def export_static(bake: Path, out: Path) -> Path:
     except BaseException:
         shutil.rmtree(temp, ignore_errors=True)
         raise
+    if left_out:
+        warnings.warn(LightprobeWarning(f"--export left out {len(left_out)} entries of the bake folder that are not "
+                                        f"regular files or folders (symbolic links, hidden names …), e.g. "
+                                        f"{left_out[0]}"), stacklevel=2)
     return out
+
+
+def _copy_regular(source: Path, target: Path) -> list[str]:
+    """Copy the regular files and folders under ``source`` into the new folder ``target``, never following a link;
+    the names left out (relative to ``source``) are returned."""
+    target.mkdir()
+    left_out = []
+    for entry in sorted(os.scandir(source), key=lambda e: e.name):
+        mode = entry.stat(follow_symlinks=False).st_mode
+        if entry.name.startswith(".") or not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
+            left_out.append(entry.name)
+        elif stat.S_ISDIR(mode):
+            left_out += [f"{entry.name}/{rel}" for rel in _copy_regular(Path(entry.path), target / entry.name)]
+        else:
+            _copy_file(Path(entry.path), target / entry.name)
+    return left_out
+
+
+def _copy_file(source: Path, target: Path) -> None:
+    """Copy one regular file, opened without following a link or waiting on a FIFO: one swapped in since the folder
+    was listed is refused."""
+    changed = LightprobeError(f"{source} changed while the bake was exported: export again")
+    try:
+        fd = os.open(source, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0))
+    except OSError:
+        raise changed from None
+    with open(fd, "rb") as f:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise changed
+        with open(target, "xb") as g:
+            shutil.copyfileobj(f, g, CHUNK)
