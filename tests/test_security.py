@@ -21,6 +21,7 @@ from lightprobe.maps.images import write_image
 from lightprobe.util.errors import LightprobeWarning, UsageError
 from lightprobe.viewer.server import ViewServer, export_static
 
+DRIP_SECONDS = 15.0  # how long the dripping client keeps going: ten times the deadline it is given
 DEADLINE = 60.0  # seconds: generous for a loaded two-core machine; the tests assert behaviour, not speed
 
 
@@ -177,6 +178,25 @@ def test_view_closes_an_idle_connection_after_its_timeout(bake_dir):
         with socket.create_connection(server.address, timeout=DEADLINE) as halfway:
             halfway.sendall(b"GET /bake/bake.json HTTP/1.1\r\nHost: ")
             assert wait_closed(halfway)
+
+
+def test_view_closes_a_connection_that_drips_its_request_past_the_deadline(bake_dir):
+    """A byte every 0.2 s keeps a connection from ever being idle for its 1 s timeout; the request's line and headers
+    still have one deadline (1.5 s here), so the server closes it while it is still dripping."""
+    import select
+
+    with ViewServer(bake_dir, idle_timeout=1.0, request_deadline=1.5) as server:
+        with socket.create_connection(server.address, timeout=DEADLINE) as drip:
+            drip.sendall(b"GET /bake/bake.json HTTP/1.1\r\nX-Slow: ")
+            start, closed = time.monotonic(), False
+            while not closed and time.monotonic() - start < DRIP_SECONDS:
+                try:
+                    drip.sendall(b"a")
+                    if select.select([drip], [], [], 0.2)[0]:
+                        closed = drip.recv(1) == b""
+                except OSError:
+                    closed = True
+            assert closed, f"still open after {DRIP_SECONDS} s of dripping"
 
 
 def test_view_serves_a_request_while_more_idle_clients_than_its_limit_are_connected(bake_dir, capfd):

@@ -17,8 +17,9 @@ the CSP, ``nosniff`` and a MIME type from :data:`MIME`.
 
 One client cannot starve the server: at most :data:`MAX_CONNECTIONS` connections are served at once (one request
 each); a connection over the limit waits for a free slot in the listen queue, and is closed if none frees within
-the idle timeout. A connection silent for :data:`IDLE_TIMEOUT` seconds is closed; files are streamed in chunks of
-:data:`CHUNK` bytes; a client's fault (a reset, a broken pipe, a timeout) prints nothing.
+the idle timeout. A connection silent for :data:`IDLE_TIMEOUT` seconds is closed, and so is one that has not sent
+a whole request line and headers within :data:`REQUEST_DEADLINE` seconds, however it spaces its bytes. Files are
+streamed in chunks of :data:`CHUNK` bytes; a client's fault (a reset, a broken pipe, a timeout) prints nothing.
 
 The static export writes the same tree (``index.html``, ``static/``, ``modules/``, ``bake/``) into a folder, so the
 page is the same file whether served here or from any static host.
@@ -27,11 +28,13 @@ page is the same file whether served here or from any static host.
 from __future__ import annotations
 
 import base64
+import contextlib
 import hashlib
 import http.server
 import os
 import re
 import shutil
+import socket
 import stat
 import sys
 import threading
@@ -52,6 +55,7 @@ _IMPORT = re.compile(r"""(?:from|import)\s*['"](\.{1,2}/[^'"]+)['"]""")
 _IMPORTMAP = re.compile(r'<script type="importmap">(.*?)</script>', re.S)
 MAX_CONNECTIONS = 32   # served at once: a page loads its ~40 files over a handful of connections
 IDLE_TIMEOUT = 5.0     # seconds a connection may stay silent (reading the request, or the client not reading)
+REQUEST_DEADLINE = 10.0  # seconds to send a whole request line and headers: a client dripping bytes is never idle
 CHUNK = 1 << 16        # bytes read from a file and sent at a time
 # A client's fault, not the server's: nothing to print.
 _CLIENT_FAULTS = (ConnectionError, TimeoutError)
@@ -238,6 +242,9 @@ class ViewServer:
         Connections served at once. Default :data:`MAX_CONNECTIONS`.
     idle_timeout : float
         Seconds a connection may stay silent before it is closed. Default :data:`IDLE_TIMEOUT`.
+    request_deadline : float
+        Seconds a client has to send a request's line and headers, however it spaces its bytes; then the connection
+        is closed. Default :data:`REQUEST_DEADLINE`.
 
     Raises
     ------
@@ -248,7 +255,7 @@ class ViewServer:
     """
 
     def __init__(self, bake: Path, port: int = 0, max_connections: int = MAX_CONNECTIONS,
-                 idle_timeout: float = IDLE_TIMEOUT):
+                 idle_timeout: float = IDLE_TIMEOUT, request_deadline: float = REQUEST_DEADLINE):
         self.bake = Path(bake).resolve()
         root = three_root()
         modules = {f"modules/three/{rel}": (root / rel).resolve() for rel in module_files(root)}
@@ -276,8 +283,25 @@ class ViewServer:
                     return safe_file(bake_root, rel[len("bake/"):])
                 return None
 
+            def handle_one_request(self) -> None:
+                # the idle timeout bounds each silence, not a request sent a byte at a time: the request's line
+                # and headers get one deadline, past which the socket is shut and this thread ends on it
+                self._deadline = threading.Timer(request_deadline, self._cut)
+                self._deadline.daemon = True
+                self._deadline.start()
+                try:
+                    super().handle_one_request()
+                finally:
+                    self._deadline.cancel()
+
+            def _cut(self) -> None:
+                with contextlib.suppress(OSError):
+                    self.connection.shutdown(socket.SHUT_RDWR)
+
             def parse_request(self) -> bool:
-                if not super().parse_request():
+                ok = super().parse_request()
+                self._deadline.cancel()  # the headers are in: the response is bounded by the idle timeout alone
+                if not ok:
                     return False
                 if self.headers.get("Host", "").strip().lower() not in hosts:
                     self._status(421, "misdirected request: this server answers only at the address it printed")
