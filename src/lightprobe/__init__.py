@@ -16,7 +16,8 @@ import os as _os
 # the report or the tests changes no key, so compiles nothing again.
 KERNEL_MODULES = ("util/jit.py", "maps/lookups.py", "maps/resampling/fused.py", "maps/resampling/balance.py",
                   "maps/resampling/cube_symmetry.py", "maps/resampling/polar.py", "sh/basis.py", "sh/row_sums.py",
-                  "lights/decompose.py", "glossy/brdf.py", "glossy/rsibr.py", "render/embree.py", "render/sampling.py")
+                  "lights/decompose.py", "glossy/brdf_sums.py", "glossy/rsibr.py", "render/embree.py",
+                  "render/sampling.py")
 
 
 def _kernel_sources(root: str) -> list[str]:
