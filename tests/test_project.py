@@ -277,7 +277,7 @@ def test_sh_and_info_load_neither_the_resampler_nor_other_commands(tmp_path):
               "from lightprobe.maps import resample, Resampler\n"
               "print(codes, loaded, resample.__module__, Resampler.__module__)\n")
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True).stdout
-    assert out.split() == ["[0,", "0]", "[]", "lightprobe.maps.resampling.resampler", "lightprobe.maps.resampling.resampler"], out
+    assert out.split() == ["[0,", "0]", "[]", "lightprobe.maps.resampling.resampler", "lightprobe.maps.resampling.cached"], out
 
 
 def test_help_loads_no_numpy():
