@@ -3,9 +3,8 @@
 This module plans a conversion and runs it: :func:`resample` and :func:`resample_strips`, the box reduction of a
 source with too many pixels a target pixel, the supersampling rate. Its mechanisms are modules of their own beside
 it: the compiled kernel (``fused``), its taps and their adjoint (``taps``), the flux correction (``flux``), the polar
-rows' reduction and balance (``polar``, ``polar_balance``), the size and memory checks (:mod:`.budget`), the numpy
-reference (:mod:`.reference`); a conversion's weights kept for many maps are a
-:class:`~lightprobe.maps.resampling.cached.Resampler`.
+rows' reduction and balance (``polar``, ``polar_balance``), the size and memory checks (``budget``), the numpy
+reference (``reference``); a conversion's weights kept for many maps are a ``cached.Resampler``.
 """
 
 from __future__ import annotations
