@@ -178,8 +178,8 @@ def rate_cost(rounds: int = 3) -> None:
 
     from lightprobe.maps.resampling.resampler import supersampling
 
-    resample_module = importlib.import_module("lightprobe.maps.resampling.resampler")
-    with_flux, resample_module._flux_stencil = resample_module._flux_stencil, lambda *args, **kwargs: None
+    flux_module = importlib.import_module("lightprobe.maps.resampling.flux")
+    with_flux, flux_module._flux_stencil = flux_module._flux_stencil, lambda *args, **kwargs: None
 
     print("\nper-pixel rates against one rate k for the whole map (best of 3, alternating)")
     print(f"  {'conversion':34s} {'k':>3s} {'one rate':>9s} {'per pixel':>9s}  ratio")
@@ -196,7 +196,7 @@ def rate_cost(rounds: int = 3) -> None:
                 best[mode] = min(best[mode], time.perf_counter() - t0)
         print(f"  {name} {size} → {target} {out_size}".ljust(36) + f"{k:3d} {best['one']:8.3f}s {best['own']:8.3f}s "
               f"{best['own'] / best['one']:5.2f}×")
-    resample_module._flux_stencil = with_flux
+    flux_module._flux_stencil = with_flux
 
 
 BALANCE_COST = [("cube", 256, "latlong", 512), ("cube", 512, "latlong", 1024), ("cube", 1024, "latlong", 2048),
@@ -215,8 +215,8 @@ def balance_cost(rounds: int = 3) -> None:
     print(f"  {'conversion':34s} {'weights':>8s} {'pass':>7s} {'without':>8s} {'with':>8s}  ratio")
     rng = np.random.default_rng(2)
     with_balance = balance.prefilter_for
-    resample_module = importlib.import_module("lightprobe.maps.resampling.resampler")
-    with_flux, resample_module._flux_stencil = resample_module._flux_stencil, lambda *args, **kwargs: None
+    flux_module = importlib.import_module("lightprobe.maps.resampling.flux")
+    with_flux, flux_module._flux_stencil = flux_module._flux_stencil, lambda *args, **kwargs: None
     for name, size, target, out_size in BALANCE_COST:
         src_layout, tgt_layout = layout(name), layout(target)
         env = EnvMap(rng.random(src_layout.grid_shape(size) + (3,)).astype(np.float32), src_layout)
@@ -239,7 +239,7 @@ def balance_cost(rounds: int = 3) -> None:
             balance.prefilter_for = with_balance
         print(f"  {name} {size} → {target} {out_size}".ljust(36) + f"{made:7.3f}s {one_pass:6.3f}s "
               f"{best['without']:7.3f}s {best['with']:7.3f}s {best['with'] / best['without']:5.2f}×")
-    resample_module._flux_stencil = with_flux
+    flux_module._flux_stencil = with_flux
 
 
 FLUX_COST = [("cube", 256, "latlong", 512), ("cube", 512, "latlong", 1024), ("cube", 1024, "latlong", 2048),
@@ -252,11 +252,11 @@ def flux_cost(rounds: int = 3) -> None:
     process), with it kept, and without it (best of ``rounds`` alternating runs each), and the largest weight."""
     import time
 
-    resample_module = importlib.import_module("lightprobe.maps.resampling.resampler")
+    flux_module = importlib.import_module("lightprobe.maps.resampling.flux")
     print("\nthe flux correction: conversion time when it is made, when it is kept, and without it (best of 3)")
     print(f"  {'conversion':34s} {'without':>8s} {'made':>8s} {'kept':>8s}  made/without kept/without  weight")
     rng = np.random.default_rng(3)
-    with_flux = resample_module._flux_stencil
+    with_flux = flux_module._flux_stencil
     for name, size, target, out_size in FLUX_COST:
         src_layout, tgt_layout = layout(name), layout(target)
         env = EnvMap(rng.random(src_layout.grid_shape(size) + (3,)).astype(np.float32), src_layout)
@@ -264,16 +264,16 @@ def flux_cost(rounds: int = 3) -> None:
         try:
             for _ in range(rounds):
                 for mode in best:
-                    resample_module._flux_stencil = with_flux if mode != "without" else (lambda *a, **k: None)
+                    flux_module._flux_stencil = with_flux if mode != "without" else (lambda *a, **k: None)
                     if mode == "made":
-                        resample_module._FLUX_CACHE.clear()
+                        flux_module._FLUX_CACHE.clear()
                     t0 = time.perf_counter()
                     resample(env, tgt_layout, out_size)
                     best[mode] = min(best[mode], time.perf_counter() - t0)
         finally:
-            resample_module._flux_stencil = with_flux
-        weight = max(stencil.largest_weight for stencil in resample_module._FLUX_CACHE.values())
-        resample_module._FLUX_CACHE.clear()
+            flux_module._flux_stencil = with_flux
+        weight = max(stencil.largest_weight for stencil in flux_module._FLUX_CACHE.values())
+        flux_module._FLUX_CACHE.clear()
         print(f"  {name} {size} → {target} {out_size}".ljust(36) + f"{best['without']:7.3f}s {best['made']:7.3f}s "
               f"{best['kept']:7.3f}s  {best['made'] / best['without']:11.2f}× {best['kept'] / best['without']:10.2f}×"
               f"  {100 * weight:5.2f} %")

@@ -26,7 +26,8 @@ from common import SHARED, best_of, require  # sets the environment first
 
 import numpy as np
 
-from lightprobe.glossy.brdf import directional_albedo, parse_brdf
+from lightprobe.glossy.brdf import parse_brdf
+from lightprobe.glossy.brdf_sums import directional_albedo
 from lightprobe.maps import read_envmap
 from lightprobe.glossy.radiance import geodesic_views, prepare, radiance_map, reflected_radiance, sphere_normals, view_frame
 from lightprobe.glossy.radiancefile import RadianceSet, radiance_set

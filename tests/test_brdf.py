@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from conftest import random_directions
-from lightprobe.glossy.brdf import CONDUCTORS, GGX, BlinnPhong, Coat, Conductor, Dielectric, Lambert, Phong, Schlick, directional_albedo, parse_brdf
+from lightprobe.glossy.brdf import CONDUCTORS, GGX, BlinnPhong, Conductor, Dielectric, Lambert, Phong, Schlick, parse_brdf
+from lightprobe.glossy.brdf_sums import directional_albedo
+from lightprobe.glossy.layered import Coat
 from lightprobe.util.errors import UsageError
 
 SPECS = ["lambert", "phong:n=50", "phong:n=3", "blinn:n=50", "blinn:n=5", "ggx:alpha=0.05", "ggx:alpha=0.2",
@@ -140,7 +142,7 @@ def test_bad_specs_get_one_clear_message(spec, message):
 @pytest.mark.parametrize("spec", SPECS)
 def test_the_compiled_evaluation_is_the_numpy_one(spec):
     """brdf_times_cosine (the compiled sums' evaluation, Fresnel read from a 16384-step table) equals eval · n·wi."""
-    from lightprobe.glossy.brdf import compiled_eval_cosine
+    from lightprobe.glossy.brdf_sums import compiled_eval_cosine
 
     brdf = parse_brdf(spec)
     n = random_directions(5000, seed=6)

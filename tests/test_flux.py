@@ -17,6 +17,8 @@ from lightprobe.maps.envmap import pixel_directions, pixel_solid_angles
 from lightprobe.maps.layouts import layout
 
 resample_module = importlib.import_module("lightprobe.maps.resampling.resampler")
+cached = importlib.import_module("lightprobe.maps.resampling.cached")
+taps_module = importlib.import_module("lightprobe.maps.resampling.taps")
 
 COARSE = [("cube", 64, "latlong", 32), ("cube", 64, "angular", 32), ("angular", 128, "latlong", 32),
           ("sphere", 128, "cube", 32), ("cube", 64, "sphere", 32),
@@ -68,9 +70,9 @@ def _gains(source, size, target, out_size):
 @pytest.mark.parametrize("source, size, target, out_size", COARSE)
 def test_every_pixel_keeps_its_energy_with_the_correction_and_not_without(source, size, target, out_size,
                                                                           monkeypatch):
-    resample_module._FLUX_CACHE.clear()
+    flux._FLUX_CACHE.clear()
     assert _gains(source, size, target, out_size).max() < 1e-5
-    (stencil,) = resample_module._FLUX_CACHE.values()
+    (stencil,) = flux._FLUX_CACHE.values()
     src = layout(source)
     totals = stencil.totals()  # on the source's grid as read (a box reduction's)
     grid = totals.shape if src.faces == 6 else totals.shape[1:]
@@ -84,7 +86,7 @@ def test_every_pixel_keeps_its_energy_with_the_correction_and_not_without(source
     # flows now reach into the ring and correct it too
     assert totals[rim_far].max() < 0.2
     assert totals.max() <= flux.MAX_WEIGHT + 1e-6
-    monkeypatch.setattr(resample_module, "_flux_stencil", lambda *args, **kwargs: None)
+    monkeypatch.setattr(flux, "_flux_stencil", lambda *args, **kwargs: None)
     assert _gains(source, size, target, out_size).max() > 2e-3
 
 
@@ -95,7 +97,7 @@ def test_suns_through_resample_keep_their_energy(source, size, target, out_size,
     src = layout(source)
     grid = src.grid_shape(size)
     with monkeypatch.context() as patched:
-        patched.setattr(resample_module, "_flux_stencil", lambda *args, **kwargs: None)
+        patched.setattr(flux, "_flux_stencil", lambda *args, **kwargs: None)
         before = np.abs(Resampler(src, grid, layout(target), out_size).energy_gains(rim_margin=25))
     measured = np.nonzero(np.isfinite(before.ravel()))[0]
     worst_first = measured[np.argsort(before.ravel()[measured])[::-1]]
@@ -120,11 +122,11 @@ def test_the_streamed_delivery_is_the_stored_taps_delivery():
     grid = src.grid_shape(32)
     r = Resampler(src, grid, target, 40)
     omega_t = pixel_solid_angles(target, target.grid_shape(40)).reshape(-1)
-    stored = resample_module._taps_delivery(r, src, grid, omega_t)
+    stored = cached._taps_delivery(r, src, grid, omega_t)
     env = EnvMap(np.zeros(grid + (3,), np.float32), src)
     _, _, k, steps = resample_module._prepared(env, target, 40, None)
-    taps = resample_module._Taps(src, grid, target, 40, k, resample_module._k_max(env, target, k, None), steps, None)
-    np.testing.assert_allclose(resample_module.delivered(taps, grid, omega_t), stored, rtol=1e-9, atol=1e-15)
+    taps = taps_module._Taps(src, grid, target, 40, k, resample_module._k_max(env, target, k, None), steps, None)
+    np.testing.assert_allclose(taps_module.delivered(taps, grid, omega_t), stored, rtol=1e-9, atol=1e-15)
 
 
 @pytest.mark.parametrize("source, size, target, out_size", [("cube", 64, "sphere", 32), ("latlong", 128, "sphere", 64),
@@ -138,10 +140,10 @@ def test_a_disc_targets_rim_is_corrected_like_the_rest(source, size, target, out
     round the rim direction too (fused._rim_polar): over 0.1 % is what is asked of the rows alone here."""
     src = layout(source)
     grid = src.grid_shape(size)
-    resample_module._FLUX_CACHE.clear()
+    flux._FLUX_CACHE.clear()
     gains = np.abs(Resampler(src, grid, layout(target), out_size).energy_gains())
     assert np.nanmax(gains) < 1e-5
-    monkeypatch.setattr(resample_module, "_flux_stencil", lambda *args, **kwargs: None)
+    monkeypatch.setattr(flux, "_flux_stencil", lambda *args, **kwargs: None)
     assert np.nanmax(np.abs(Resampler(src, grid, layout(target), out_size).energy_gains())) > 1e-3
 
 
@@ -153,9 +155,9 @@ def test_a_mirror_balls_outer_rings_take_no_large_blend(size, target, out_size, 
     ball = layout("sphere")
     grid = ball.grid_shape(size)
     monkeypatch.setattr(flux, "MAX_WEIGHT", 0.5)
-    resample_module._FLUX_CACHE.clear()
+    flux._FLUX_CACHE.clear()
     assert np.nanmax(np.abs(Resampler(ball, grid, layout(target), out_size).energy_gains())) < 1e-5
-    resample_module._FLUX_CACHE.clear()
+    flux._FLUX_CACHE.clear()
 
 
 @pytest.mark.parametrize("source, size, target, out_size",
@@ -170,14 +172,14 @@ def test_a_disc_sources_rim_slivers_count_by_their_share_of_the_sphere(source, s
     grid = src.grid_shape(size)
 
     def worst():
-        resample_module._FLUX_CACHE.clear()
+        flux._FLUX_CACHE.clear()
         conversion = Resampler(src, grid, layout(target), out_size).without_flux_correction()
         return np.nanmax(np.abs(conversion.energy_gains()))
 
     assert worst() < 2.0
     monkeypatch.setattr(layouts_module, "_disc_certainty", lambda lay, n: lay.valid_mask((n, n)).astype(np.float32))
     assert worst() > 30.0
-    resample_module._FLUX_CACHE.clear()
+    flux._FLUX_CACHE.clear()
 
 
 def test_an_angular_source_is_corrected_to_its_rim_direction():
@@ -197,7 +199,7 @@ def test_each_layout_has_its_own_correction_even_under_one_name():
     from lightprobe.maps.frames import rotation_from_ypr
     from lightprobe.maps.layouts import Sphere
 
-    resample_module._FLUX_CACHE.clear()
+    flux._FLUX_CACHE.clear()
     src = layout("cube")
     grid = src.grid_shape(16)
     Resampler(src, grid, layout("sphere"), 20).energy_gains()
@@ -210,7 +212,7 @@ def test_threads_converting_at_once_share_the_kept_corrections(monkeypatch):
     each conversion is the one a lone thread makes."""
     from concurrent.futures import ThreadPoolExecutor
 
-    monkeypatch.setattr(resample_module, "_FLUX_CACHE_BYTES", 40_000)  # room for about one small correction
+    monkeypatch.setattr(flux, "_FLUX_CACHE_BYTES", 40_000)  # room for about one small correction
     src = layout("cube")
     env = EnvMap(np.random.default_rng(2).random(src.grid_shape(12) + (3,)).astype(np.float32), src)
     jobs = [(target, size) for target in ("latlong", "angular", "sphere", "cube") for size in (6, 8, 10)] * 3

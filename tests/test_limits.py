@@ -173,19 +173,19 @@ def test_kernels_are_linked_on_a_map_that_takes_the_conversions_route(monkeypatc
     """envmap.link_kernels runs a conversion's kernels on a small map before the big one is read: a lat-long of 64
     rows into a disc would be flux-corrected where a 4k one is not, and linking that correction kept ~5 MiB beside
     the map. The small map takes the same turn as the conversion itself would."""
-    from lightprobe.maps.resampling import resampler as resampling
+    from lightprobe.maps.resampling import flux, resampler as resampling
     from lightprobe.maps.layouts import layout
 
-    real = resampling._corrected(LATLONG, (rows, 2 * rows), layout(target), None)
+    real = flux._corrected(LATLONG, (rows, 2 * rows), layout(target), None)
     assert real == corrected
     seen = []
-    build = resampling._flux_stencil
+    build = flux._flux_stencil
 
     def spy(source_layout, source_grid, target_layout, *args):
-        seen.append((source_grid, resampling._corrected(source_layout, source_grid, target_layout, None)))
+        seen.append((source_grid, flux._corrected(source_layout, source_grid, target_layout, None)))
         return build(source_layout, source_grid, target_layout, *args)
 
-    monkeypatch.setattr(resampling, "_flux_stencil", spy)
+    monkeypatch.setattr(flux, "_flux_stencil", spy)
     size = layout(target).default_size(2 * rows * rows)
     resampling.link_kernels(LATLONG, 2 * rows * rows, layout(target), size)
     assert seen and all(small == corrected for _, small in seen), seen

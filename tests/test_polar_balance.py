@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from lightprobe.maps import EnvMap, Resampler, resample
-from lightprobe.maps.resampling import fused, polar, polar_balance, resampler as resampling
+from lightprobe.maps.resampling import fused, polar, polar_balance, resampler as resampling, taps as taps_module
 from lightprobe.maps.envmap import pixel_solid_angles
 from lightprobe.maps.frames import rotation_from_ypr
 from lightprobe.maps.layouts import layout
@@ -92,7 +92,7 @@ def test_the_masked_measure_equals_the_whole_adjoint(target, size, turn):
     found = polar.polar_levels(steps, grid, k)
     caps = polar_balance.caps(found, grid[1])
     assert len(caps) == 2
-    taps = resampling._Taps(LATLONG, grid, filled, size, k, k_max, steps, turn)
+    taps = taps_module._Taps(LATLONG, grid, filled, size, k, k_max, steps, turn)
     omega_t = pixel_solid_angles(filled, tgt_grid).reshape(-1)
     whole = np.zeros(taps.source_pixels + taps.reduced_size)
     fused.footprint_delivery(*taps.kernel_args, 0, taps.lines, omega_t, taps.max_taps, whole, 0)
@@ -100,7 +100,7 @@ def test_the_masked_measure_equals_the_whole_adjoint(target, size, turn):
         kept = polar_balance.near_pole(filled, tgt_grid, turn, sign, angle)
         assert kept.size < omega_t.size / 4 or filled.name == "angular"  # most left out (a disc keeps its rim)
         first, end = polar_balance.cell_span(found, grid[1], rows)
-        masked = resampling._kept_delivery(taps, filled, tgt_grid, kept, taps.source_pixels + first, end - first)
+        masked = polar_balance._kept_delivery(taps, filled, tgt_grid, kept, taps.source_pixels + first, end - first)
         np.testing.assert_allclose(masked, whole[taps.source_pixels + first:taps.source_pixels + end], rtol=1e-12)
 
 

@@ -7,7 +7,8 @@ import pytest
 
 from conftest import random_directions, shared
 from lightprobe import read_envmap
-from lightprobe.glossy.brdf import directional_albedo, parse_brdf, reflect
+from lightprobe.glossy.brdf import parse_brdf, reflect
+from lightprobe.glossy.brdf_sums import directional_albedo
 from lightprobe.maps import EnvMap
 from lightprobe.util.errors import UsageError
 from lightprobe.maps.layouts import CUBE, LATLONG
@@ -26,7 +27,7 @@ def _normals_and_views(count: int, seed: int):
 @pytest.mark.parametrize("spec", BRDFS)
 def test_white_furnace_the_reflected_radiance_of_a_uniform_sky_is_the_albedo(spec):
     """Under radiance 1 from everywhere, L_r(n; v) is the directional albedo at n·v — the same number
-    brdf.directional_albedo finds by importance sampling (an independent estimator), within 1 %."""
+    brdf_sums.directional_albedo finds by importance sampling (an independent estimator), within 1 %."""
     brdf = parse_brdf(spec)
     sky = EnvMap(np.ones((64, 128, 3), np.float32), LATLONG)
     cos_view = np.array([1.0, 0.7, 0.3])

@@ -14,7 +14,8 @@ import pytest
 from lightprobe.maps import EnvMap
 from lightprobe.maps.resampling import fused
 from lightprobe.maps.envmap import pixel_directions
-from lightprobe.maps.resampling.resampler import _fused_resample, reference_resample, resample
+from lightprobe.maps.resampling.reference import reference_resample
+from lightprobe.maps.resampling.resampler import _fused_resample, resample
 from lightprobe.maps.frames import rotation_from_ypr
 from lightprobe.util.jit import dispatcher
 from lightprobe.maps.layouts import CUBE, LATLONG, LAYOUTS, Sphere, layout
@@ -367,7 +368,7 @@ GAIN_CEILINGS = [  # every pixel of the source as the sun; cube, angular and mir
 def test_a_sun_in_any_pixel_keeps_its_energy_within_the_measured_ceiling(source, size, target, out_size, ceiling):
     """Every source pixel as the sun, exactly (energy_gains): held to what this code reaches, so a change that
     loses it fails. Cube, angular and mirror-ball sources are flux-corrected (exact to float rounding), and lat-long
-    sources into discs up to resampling.LATLONG_FLUX_MAX_PIXELS (2048×1024)."""
+    sources into discs up to flux.LATLONG_FLUX_MAX_PIXELS (2048×1024)."""
     worst = _kept_gains(source, size, target, out_size).max()
     assert worst < ceiling, f"{100 * worst:.3f} %"
 
@@ -378,7 +379,7 @@ def test_a_lat_long_into_a_disc_at_its_default_size_keeps_every_suns_energy(targ
     flux correction reached 2048×1024 (it stopped at 2^16 pixels), the rates' steps mid-ball left 0.33 % and an
     angular map's rim direction 0.32 %; corrected, every pixel is exact."""
     from lightprobe.maps import Resampler
-    from lightprobe.maps.resampling.resampler import _corrected
+    from lightprobe.maps.resampling.flux import _corrected
 
     src = layout("latlong")
     assert layout(target).default_size(src.grid_shape(512)[0] * src.grid_shape(512)[1]) == out_size
@@ -461,16 +462,17 @@ def test_a_mirror_balls_ring_is_corrected_to_its_rim(floor, monkeypatch):
     from lightprobe.maps import Resampler
 
     resample_module = importlib.import_module("lightprobe.maps.resampling.resampler")
+    flux = importlib.import_module("lightprobe.maps.resampling.flux")
     monkeypatch.setattr(resample_module, "SPHERE_MIN_SIDE", floor)
     ball = layout("sphere")
     grid = ball.grid_shape(128)
 
     def worst(margin=None):
-        resample_module._FLUX_CACHE.clear()
+        flux._FLUX_CACHE.clear()
         return np.nanmax(np.abs(Resampler(ball, grid, layout("latlong"), 16).energy_gains(rim_margin=margin)))
 
     assert worst() < 1e-5
-    resample_module._FLUX_CACHE.clear()
+    flux._FLUX_CACHE.clear()
 
 
 def test_points_off_a_disc_target_take_no_step():
@@ -512,8 +514,8 @@ def test_every_pixel_of_a_source_under_48_rows_keeps_its_energy(rows, target, ou
         return np.nanmax(gains)
 
     assert worst() < 1e-5
-    resample_module = importlib.import_module("lightprobe.maps.resampling.resampler")
-    monkeypatch.setattr(resample_module, "_flux_stencil", lambda *args, **kwargs: None)
+    monkeypatch.setattr(importlib.import_module("lightprobe.maps.resampling.flux"), "_flux_stencil",
+                        lambda *args, **kwargs: None)
     assert worst() > 0.2
 
 

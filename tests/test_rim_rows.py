@@ -12,7 +12,7 @@ from lightprobe.maps.layouts import layout
 
 def _rim_call(row, col, n, source_rows, target="sphere"):
     from lightprobe.maps.resampling import fused
-    from lightprobe.maps.resampling.resampler import _axes
+    from lightprobe.maps.resampling.taps import _axes
 
     rim = fused._rim_subsamples
     rim = getattr(rim, "lazy_dispatcher", lambda: rim)()  # compiled (a plain function until the first kernel is)
@@ -49,7 +49,7 @@ def test_a_large_balls_rim_pixel_fits_its_scratch(row, col):
 def _check_rim_pixel(row, col, n, source_rows):
     from lightprobe.maps.resampling import fused
 
-    from lightprobe.maps.resampling.resampler import _axes
+    from lightprobe.maps.resampling.taps import _axes
 
     count, wsum, weights = _rim_call(row, col, n, source_rows)
     assert count <= 32 * 32 + 1
@@ -102,7 +102,7 @@ def test_a_large_balls_long_ring_pixels_are_sampled_round_the_rim_direction():
     weights still sum to their area); from the rim inwards along the ball's middle row, a run of them, then the
     plain cells only."""
     from lightprobe.maps.resampling import fused
-    from lightprobe.maps.resampling.resampler import _axes
+    from lightprobe.maps.resampling.taps import _axes
 
     n, source_rows = 512, 2048
     polar = [fused._rim_polar.py_func(fused.SPHERE, _axes(layout("sphere")), 256, col, n, n, np.eye(3),
@@ -125,18 +125,18 @@ def test_a_large_balls_long_ring_pixels_are_sampled_round_the_rim_direction():
 ])
 def test_a_lat_long_too_large_for_the_flux_correction_keeps_every_suns_energy_in_a_mirror_ball(rows, ball, bound):
     """Lat-longs over 2048×1024 are not flux-corrected (tests/test_limits.py: a 4k map's correction would hold more
-    than convert may): every source pixel's delivery, by the kernels' own adjoint (resampling.delivered), no rim
+    than convert may): every source pixel's delivery, by the kernels' own adjoint (taps.delivered), no rim
     margin, within the 0.2 % bar."""
-    from lightprobe.maps.resampling import resampler as rs
+    from lightprobe.maps.resampling import flux, resampler as rs, taps
     from lightprobe.maps.envmap import pixel_solid_angles
 
     src, target = layout("latlong"), layout("sphere")
     grid, target_grid = src.grid_shape(rows), target.grid_shape(ball)
-    assert not rs._corrected(src, grid, target, None)
+    assert not flux._corrected(src, grid, target, None)
     k, steps = rs.supersampling(src, grid, target, target_grid, None, None)
     assert rs._reduced_grid(src, grid, target, target_grid)[1] == grid  # read whole, as here
-    taps = rs._Taps(src, grid, target, ball, k, rs.adaptive_rate(src, target, k), steps, None)
-    delivery = rs.delivered(taps, grid, pixel_solid_angles(target, target_grid).reshape(-1))
+    footprint = taps._Taps(src, grid, target, ball, k, rs.adaptive_rate(src, target, k), steps, None)
+    delivery = taps.delivered(footprint, grid, pixel_solid_angles(target, target_grid).reshape(-1))
     worst = np.abs(delivery.reshape(grid) / pixel_solid_angles(src, grid) - 1).max()
     assert worst < bound, f"{100 * worst:.3f} %"
 
@@ -209,9 +209,9 @@ def test_small_angular_maps_keep_a_suns_energy_before_their_flux_correction(monk
     lat-long's sun 23 % off before the correction: only the pixels the rim crosses are (0.26–0.31 % here before,
     0.44–0.50 % with no margin for 32 and 64)."""
     from lightprobe.maps import Resampler
-    from lightprobe.maps.resampling import resampler as resampling
+    from lightprobe.maps.resampling import flux
 
-    monkeypatch.setattr(resampling, "_flux_stencil", lambda *args, **kwargs: None)
+    monkeypatch.setattr(flux, "_flux_stencil", lambda *args, **kwargs: None)
     src = layout("latlong")
     gains = Resampler(src, src.grid_shape(rows), layout("angular"), size).energy_gains(rim_margin=None)
     assert np.nanmax(np.abs(gains)) < bound, f"{100 * np.nanmax(np.abs(gains)):.3f} %"

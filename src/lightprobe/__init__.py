@@ -15,8 +15,9 @@ import os as _os
 # reading a constant of another module would otherwise keep a stale copy of it. Editing the command line, the docs,
 # the report or the tests changes no key, so compiles nothing again.
 KERNEL_MODULES = ("util/jit.py", "maps/lookups.py", "maps/resampling/fused.py", "maps/resampling/balance.py",
-                  "maps/resampling/cube_symmetry.py", "maps/resampling/polar.py", "sh/basis.py", "lights/decompose.py",
-                  "glossy/brdf.py", "glossy/dfg.py", "glossy/rsibr.py", "render/embree.py", "render/sampling.py")
+                  "maps/resampling/cube_symmetry.py", "maps/resampling/polar.py", "sh/basis.py", "sh/row_sums.py",
+                  "lights/decompose.py", "glossy/brdf_sums.py", "glossy/dfg.py", "glossy/rsibr.py", "render/embree.py",
+                  "render/sampling.py")
 
 
 def _kernel_sources(root: str) -> list[str]:

@@ -180,6 +180,12 @@ def times_pi(c: np.ndarray) -> np.ndarray:
     return c * pi
 
 
+def _lambertian_nine(sh: SHCoeffs, frame: Frame) -> np.ndarray:
+    """K_i Â_l L_lm / π of bands 0–2 in ``frame``: the nine numbers whose bare polynomial gives E/π (Filament's and
+    Unity's shaders read the same ones, each in its own frame)."""
+    return premultiply_basis_constants(irradiance_to_lambertian(radiance_to_irradiance(_nine(sh, frame))))
+
+
 # ---- targets --------------------------------------------------------------------------------------------------------
 def export_json(sh: SHCoeffs, frame: Frame = WORLD) -> str:
     """lightprobe's own SH JSON (:mod:`lightprobe.sh.shfile`): radiance L_lm in the paper's basis (no CS phase).
@@ -294,8 +300,7 @@ def filament_coefficients(sh: SHCoeffs, frame: Frame = FILAMENT) -> np.ndarray:
     UsageError
         ``sh`` holds irradiance, or its order is below 2.
     """
-    c = _nine(sh, frame)
-    return premultiply_basis_constants(irradiance_to_lambertian(radiance_to_irradiance(c)))
+    return _lambertian_nine(sh, frame)
 
 
 def export_filament(sh: SHCoeffs, frame: Frame = FILAMENT) -> str:
@@ -352,8 +357,7 @@ def unity_coefficients(sh: SHCoeffs, frame: Frame = UNITY) -> np.ndarray:
     UsageError
         ``sh`` holds irradiance, or its order is below 2.
     """
-    c = _nine(sh, frame)
-    return premultiply_basis_constants(irradiance_to_lambertian(radiance_to_irradiance(c)))
+    return _lambertian_nine(sh, frame)
 
 
 def export_unity(sh: SHCoeffs, frame: Frame = UNITY, csharp: bool = True) -> str:

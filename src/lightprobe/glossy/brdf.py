@@ -1,6 +1,6 @@
 """Isotropic BRDFs for glossy radiance maps and rendering (Cabral, Olano & Nemec 1999; docs/spec.md §4).
 
-Conventions, the same for every class here:
+Conventions, the same for every BRDF (these and the layered ones of :mod:`lightprobe.glossy.layered`):
 
 * directions are unit vectors **leaving** the surface, in any one frame shared by all arguments: ``wi`` toward the
   light, ``wo`` toward the eye, ``n`` the surface normal; arrays of shape (..., 3) that broadcast together;
@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..util.errors import LightprobeWarning, UsageError
-from ..util.jit import njit, prange
+from .brdf_sums import _NO_FRESNEL, BLINN, GGX_MODEL, LAMBERT, PHONG, fresnel_table
 
 # RGB complex indices of refraction (η, k) of Mitsuba 3's conductor presets, read from its scalar_rgb variant
 # (its spectral data reduced to RGB): the names `conductor=gold` etc. mean exactly what Mitsuba's do.
@@ -268,16 +268,21 @@ class BRDF:
         return {}
 
     def kernel(self) -> tuple[int, np.ndarray, np.ndarray]:
-        """(model number, parameters, Fresnel table) for the compiled sums (:func:`reflected_sums`).
+        """(model number, parameters, Fresnel table) for the compiled sums.
+
+        What :func:`~lightprobe.glossy.brdf_sums.reflected_sums` and the other kernels of
+        :mod:`lightprobe.glossy.brdf_sums` read in place of the class.
 
         Returns
         -------
         model : int
-            One of ``LAMBERT``, ``PHONG``, ``BLINN``, ``GGX_MODEL``, ``COAT``, ``PLASTIC``.
+            One of ``LAMBERT``, ``PHONG``, ``BLINN``, ``GGX_MODEL``, ``COAT``, ``PLASTIC``
+            (:mod:`lightprobe.glossy.brdf_sums`).
         params : numpy.ndarray
             (P,) float64: the numbers the compiled formula of that model reads (each subclass says which).
         table : numpy.ndarray
-            (M, 3) float64 Fresnel table over cos ∈ [0, 1] (:func:`fresnel_table`), or (2, 3) ones for no Fresnel.
+            (M, 3) float64 Fresnel table over cos ∈ [0, 1] (:func:`~lightprobe.glossy.brdf_sums.fresnel_table`), or
+            (2, 3) ones for no Fresnel.
         """
         raise NotImplementedError
 
@@ -421,7 +426,7 @@ class Lambert(BRDF):
         return {} if self.albedo == (1.0, 1.0, 1.0) else {"albedo": self.albedo}
 
     def kernel(self):
-        """``LAMBERT``, the albedo and no Fresnel term, for :func:`reflected_sums`.
+        """``LAMBERT``, the albedo and no Fresnel term, for :func:`~lightprobe.glossy.brdf_sums.reflected_sums`.
 
         Returns
         -------
@@ -545,7 +550,7 @@ class Phong(BRDF):
         return {"n": self.n} if self.ks == 1 else {"n": self.n, "ks": self.ks}
 
     def kernel(self):
-        """``PHONG`` with the parameters [n, ks] and no Fresnel term, for :func:`reflected_sums`.
+        """``PHONG`` with the parameters [n, ks] and no Fresnel term, for the compiled sums.
 
         Returns
         -------
@@ -844,9 +849,10 @@ class GGX(BRDF):
         return out
 
     def kernel(self):
-        """``GGX_MODEL`` with the parameter [α] and the Fresnel term tabulated (:func:`fresnel_table`).
+        """``GGX_MODEL`` with the parameter [α] and the Fresnel term tabulated.
 
-        Schlick's with f0 = 1 is the (2, 3) table of ones: no Fresnel.
+        The table is :func:`~lightprobe.glossy.brdf_sums.fresnel_table`'s; Schlick's with f0 = 1 is the (2, 3) table of
+        ones: no Fresnel.
 
         Returns
         -------
@@ -867,519 +873,7 @@ class GGX(BRDF):
         return min(np.pi / 2, 2 * self.alpha)
 
 
-@dataclass(repr=False)
-class Coat(BRDF):
-    """A clear coat over a diffuse base: GGX reflection off a dielectric of index ``ior`` (exact Fresnel), plus the
-    base's Lambertian albedo seen through the coat twice, f = f_GGX + (1 − F(n·wi))(1 − F(n·wo)) albedo/π.
-    Energy: what the coat reflects at a view is at most F of it, and the base gets at most the rest (≤ 1, tested)."""
-
-    alpha: float = 0.1
-    ior: float = 1.5
-    albedo: tuple = (0.5, 0.5, 0.5)
-    name = "coat"
-    central = "mirror"
-
-    def __post_init__(self):
-        self.alpha = _alpha(self.alpha)
-        self._coat = GGX(self.alpha, Dielectric(float(self.ior)))
-        self._base = Lambert(self.albedo)
-        self.albedo = self._base.albedo
-
-    def _through(self, cos):
-        return 1 - self._coat.fresnel(cos)
-
-    def eval(self, wi, wo, n):
-        """f_r = f_GGX + (1 − F(n·wi))(1 − F(n·wo)) albedo/π: the coat's reflection plus the base seen through it.
-
-        F is the coat's exact dielectric Fresnel term; both parts are 0 below the surface. RGB, sr⁻¹.
-
-        Parameters
-        ----------
-        wi : numpy.ndarray
-            (..., 3) unit directions toward the light; the light reaches the base through 1 − F(n·wi).
-        wo : numpy.ndarray
-            (..., 3) unit directions toward the eye; the base's light leaves through 1 − F(n·wo).
-        n : numpy.ndarray
-            (..., 3) unit normals, of both the coat and the base; the three arrays in one frame, broadcasting together.
-
-        Returns
-        -------
-        numpy.ndarray
-            (..., 3) float64 f_r: the coat's part plus the base's.
-        """
-        base = self._base.eval(wi, wo, n) * self._through(_dot(n, wi)) * self._through(_dot(n, wo))
-        return self._coat.eval(wi, wo, n) + base
-
-    def specular_share(self, wo, n) -> np.ndarray:
-        """The probability of sampling the coat's lobe: its Fresnel weight at the view (at least 0.1, at most 0.9).
-
-        That weight is twice the coat's Fresnel reflectance F(n·wo) (a dielectric's: the same in R, G and B), clipped to
-        [0.1, 0.9].
-
-        Parameters
-        ----------
-        wo : numpy.ndarray
-            (..., 3) unit directions toward the eye.
-        n : numpy.ndarray
-            (..., 3) unit normals, in the frame of ``wo``, broadcasting with it.
-
-        Returns
-        -------
-        numpy.ndarray
-            (...,) float64 probabilities in [0.1, 0.9].
-        """
-        return np.clip(self._coat.fresnel(_dot(n, wo))[..., 0] * 2, 0.1, 0.9)
-
-    def sample(self, wo, n, u):
-        """The coat's GGX lobe with probability :meth:`specular_share`, else the base's cosine lobe about ``n``.
-
-        u₀ picks the lobe and is stretched back to [0, 1) within the part that picked it, so each lobe gets well-spread
-        uniforms; the density returned is the mixture's (:meth:`pdf`).
-
-        Parameters
-        ----------
-        wo : numpy.ndarray
-            (..., 3) unit directions toward the eye; they set the share and the coat's mirror lobe.
-        n : numpy.ndarray
-            (..., 3) unit normals, the axis of both lobes, in the frame of ``wo``.
-        u : numpy.ndarray
-            (..., 2) uniforms in [0, 1)²: u₀ picks the lobe (and is reused within it), u₁ the azimuth.
-
-        Returns
-        -------
-        wi : numpy.ndarray
-            (..., 3) float64 unit directions from whichever lobe was picked.
-        pdf : numpy.ndarray
-            (...,) float64 the mixture's density of each (sr⁻¹).
-        """
-        share = self.specular_share(wo, n)
-        pick = u[..., 0] < share
-        # the picked half of u[..., 0] stretched back to [0, 1): each lobe gets well-spread uniforms
-        u0 = np.where(pick, u[..., 0] / share, (u[..., 0] - share) / (1 - share))
-        v = np.stack(np.broadcast_arrays(np.clip(u0, 0.0, 1 - 1e-12), u[..., 1]), axis=-1)
-        wi = np.where(pick[..., None], self._coat.sample(wo, n, v)[0], _cosine_sample(n, v)[0])
-        return wi, self.pdf(wi, wo, n)
-
-    def pdf(self, wi, wo, n):
-        """share · p_GGX + (1 − share) · p_cosine (sr⁻¹), share the :meth:`specular_share` at the view.
-
-        Parameters
-        ----------
-        wi : numpy.ndarray
-            (..., 3) unit incident directions, weighed by both lobes.
-        wo : numpy.ndarray
-            (..., 3) unit directions toward the eye; they set the share.
-        n : numpy.ndarray
-            (..., 3) unit normals, the axis of D and of the cosine lobe; the three arrays in one frame.
-
-        Returns
-        -------
-        numpy.ndarray
-            (...,) float64 density of the mixture.
-        """
-        share = self.specular_share(wo, n)
-        return share * self._coat.pdf(wi, wo, n) + (1 - share) * self._base.pdf(wi, wo, n)
-
-    def params(self):
-        """α, ``ior`` and the base's ``albedo``, always all three.
-
-        Returns
-        -------
-        dict
-            ``{"alpha": α, "ior": ior, "albedo": (r, g, b)}``.
-        """
-        return {"alpha": self.alpha, "ior": float(self.ior), "albedo": self.albedo}
-
-    def kernel(self):
-        """``COAT`` with the parameters [α, albedo r, g, b] and the coat's dielectric Fresnel term tabulated.
-
-        Returns
-        -------
-        tuple of (int, numpy.ndarray, numpy.ndarray)
-            ``COAT``; (4,) float64 parameters; the (FRESNEL_STEPS + 1, 3) float64 table of :func:`fresnel_table`.
-        """
-        return COAT, np.array([self.alpha, *self.albedo]), fresnel_table(self._coat.fresnel)
-
-    def lobe_width(self):
-        """The coat's GGX lobe width, min(π/2, 2α) radians; the base's cosine lobe does not count.
-
-        Returns
-        -------
-        float
-            Radians.
-        """
-        return self._coat.lobe_width()
-
-
-PLASTIC_STEPS = 64  # μ samples of the plastic's tabulated coat transmittance (as Mitsuba's roughplastic)
-PLASTIC_QUADRATURE = 128  # per axis: (cos θ_h, φ) midpoint quadrature of the coat's reflectance at each μ
-
-
-def _fresnel_either_side(cos: np.ndarray, eta: float) -> np.ndarray:
-    """Unpolarised dielectric Fresnel reflectance for relative index ``eta`` on either side (eta < 1: from inside,
-    total internal reflection past the critical angle)."""
-    c = np.clip(cos, 0.0, 1.0)
-    sin_t2 = (1 - c * c) / (eta * eta)
-    cos_t = np.sqrt(np.clip(1 - sin_t2, 0.0, None))
-    rs = (c - eta * cos_t) / np.maximum(c + eta * cos_t, 1e-300)
-    rp = (eta * c - cos_t) / np.maximum(eta * c + cos_t, 1e-300)
-    return np.where(sin_t2 >= 1, 1.0, 0.5 * (rs * rs + rp * rp))
-
-
-def _half_vector_quadrature(alpha: float) -> tuple[np.ndarray, np.ndarray]:
-    """Half vectors (K·2K, 3) at the midpoints of equal-probability cells of D cos θ_h, and their cos θ_h: a
-    quadrature of ∫ g(h) D(h) cos θ_h dω_h = mean of g over them."""
-    k = PLASTIC_QUADRATURE
-    a2 = alpha * alpha
-    u = (np.arange(k) + 0.5) / k
-    cos_h = np.sqrt((1 - u) / (1 + (a2 - 1) * u))
-    phi = (np.arange(2 * k) + 0.5) / (2 * k) * 2 * np.pi
-    sin_h = np.sqrt(1 - cos_h ** 2)
-    h = np.stack(np.broadcast_arrays(sin_h[:, None] * np.cos(phi), sin_h[:, None] * np.sin(phi),
-                                     cos_h[:, None]), axis=-1).reshape(-1, 3)
-    return h, np.repeat(cos_h, 2 * k)
-
-
-def rough_dielectric_albedo(alpha: float, eta: float, mu: np.ndarray, transmitted: bool) -> np.ndarray:
-    """The share of light arriving at cos θ = μ that a rough GGX dielectric interface reflects or lets through.
-
-    Light comes from the side of index 1, relative index ``eta`` beyond. The interface reflects it (``transmitted``
-    False) or refracts it through (True): over microfacets m seen from wi (density G1(wi) (wi·m) D(m) / μ), the mean
-    of F · G1(reflected) or (1 − F) · G1(refracted) — the single-scattering albedos Mitsuba tabulates for
-    roughplastic. Midpoint quadrature over m.
-
-    Parameters
-    ----------
-    alpha : float
-        The interface's GGX width α (α = roughness²), in (0, 1].
-    eta : float
-        Relative index of refraction beyond the interface; below 1 for light from inside (total internal reflection
-        past the critical angle).
-    mu : numpy.ndarray
-        (M,) cosines μ of the incident direction to the normal, in (0, 1].
-    transmitted : bool
-        False for the share reflected, True for the share refracted through.
-
-    Returns
-    -------
-    numpy.ndarray
-        (M,) float64 shares in [0, 1].
-    """
-    h, cos_h = _half_vector_quadrature(alpha)
-    out = np.empty(len(mu))
-    for i, m in enumerate(np.asarray(mu, dtype=np.float64)):
-        wi = np.array([np.sqrt(max(0.0, 1 - m * m)), 0.0, m])
-        c = h @ wi
-        visible = np.where(c > 0, smith_g1(np.array(m), alpha) * c / (m * cos_h), 0.0)
-        fresnel = _fresnel_either_side(c, eta)
-        if transmitted:
-            cos_t = np.sqrt(np.clip(1 - (1 - c * c) / (eta * eta), 0.0, None))
-            w = -wi / eta + (c / eta - cos_t)[:, None] * h  # into the far side: w·h = −cos_t, w_z < 0
-            value = (1 - fresnel) * smith_g1(-w[:, 2], alpha) * (w[:, 2] < 0)
-        else:
-            w = 2 * c[:, None] * h - wi
-            value = fresnel * smith_g1(w[:, 2], alpha)
-        out[i] = float(np.mean(visible * value))
-    return out
-
-
-@dataclass(repr=False)
-class Plastic(Coat):
-    """Mitsuba 3's ``roughplastic`` (GGX, same α, interior index ``ior`` over exterior 1, ``albedo`` its
-    diffuse_reflectance, linear): GGX reflection off the dielectric, plus the diffuse base seen through it,
-    f = f_GGX + albedo / (1 − R_int) · t(μ_i) t(μ_o) / (π η²) — t(μ) the rough interface's transmittance from
-    outside, R_int = 2 ∫ R(μ; 1/η) μ dμ the light it sends back inside (:func:`rough_dielectric_albedo`; both
-    tabulated at 64 μ and read linearly, as Mitsuba does)."""
-
-    alpha: float = 0.1
-    ior: float = 1.49
-    albedo: tuple = (0.5, 0.5, 0.5)
-    name = "plastic"
-
-    def __post_init__(self):
-        super().__post_init__()
-        mu = np.maximum(np.arange(PLASTIC_STEPS) / (PLASTIC_STEPS - 1), 1e-6)
-        self._transmittance = rough_dielectric_albedo(self.alpha, float(self.ior), mu, transmitted=True)
-        internal = 2 * float(np.mean(rough_dielectric_albedo(self.alpha, 1 / float(self.ior), mu, False) * mu))
-        self._diffuse = np.asarray(self.albedo) / (1 - internal) / (np.pi * float(self.ior) ** 2)
-
-    def _through_coat(self, cos: np.ndarray) -> np.ndarray:
-        x = np.clip(cos, 0.0, 1.0) * (PLASTIC_STEPS - 1)
-        i = np.minimum(x.astype(int), PLASTIC_STEPS - 2)
-        t = x - i
-        return self._transmittance[i] * (1 - t) + self._transmittance[i + 1] * t
-
-    def eval(self, wi, wo, n):
-        """f_r = f_GGX + albedo / (1 − R_int) · t(μ_i) t(μ_o) / (π η²), μ = n·w; 0 below the surface.
-
-        t is tabulated at 64 μ and read linearly, as Mitsuba does. RGB, sr⁻¹.
-
-        Parameters
-        ----------
-        wi : numpy.ndarray
-            (..., 3) unit directions toward the light; μ_i = n·wi.
-        wo : numpy.ndarray
-            (..., 3) unit directions toward the eye; μ_o = n·wo.
-        n : numpy.ndarray
-            (..., 3) unit normals of the interface and the base; the three arrays in one frame, broadcasting together.
-
-        Returns
-        -------
-        numpy.ndarray
-            (..., 3) float64 f_r: the interface's reflection plus the diffuse part.
-        """
-        cos_i, cos_o = _dot(n, wi), _dot(n, wo)
-        base = np.where(_above(wi, wo, n), self._through_coat(cos_i) * self._through_coat(cos_o), 0.0)
-        return self._coat.eval(wi, wo, n) + base[..., None] * self._diffuse
-
-    def kernel(self):
-        """``PLASTIC`` with [α, d_r, d_g, d_b], d = albedo / ((1 − R_int) π η²), and a table of F and t(μ).
-
-        Column 0 of the table is the dielectric's Fresnel term F, column 1 the interface's transmittance t(μ), both at
-        the cosines of :func:`fresnel_table`.
-
-        Returns
-        -------
-        tuple of (int, numpy.ndarray, numpy.ndarray)
-            ``PLASTIC``; (4,) float64 parameters; the (FRESNEL_STEPS + 1, 3) float64 table.
-        """
-        table = fresnel_table(self._coat.fresnel)
-        table[:, 1] = self._through_coat(np.linspace(0.0, 1.0, len(table)))  # column 0: F; column 1: t(μ)
-        return PLASTIC, np.array([self.alpha, *self._diffuse]), table
-
-
-# ---- compiled sums ----------------------------------------------------------------------------------------------
-LAMBERT, PHONG, BLINN, GGX_MODEL, COAT, PLASTIC = range(6)  # model numbers of the compiled evaluation
-FRESNEL_STEPS = 16384  # entries of the tabulated Fresnel term over cos ∈ [0, 1] (read linearly: within 1e-5)
-_NO_FRESNEL = np.ones((2, 3))
-
-
-def fresnel_table(fresnel) -> np.ndarray:
-    """F(cos) RGB at cos = i / FRESNEL_STEPS, i = 0 … FRESNEL_STEPS, from the exact formula.
-
-    The compiled sums read it linearly, so the Fresnel formulas exist once, here in numpy.
-
-    Parameters
-    ----------
-    fresnel : Schlick or Dielectric or Conductor
-        The Fresnel term: called with an array of cosines, it returns their (..., 3) RGB reflectance.
-
-    Returns
-    -------
-    numpy.ndarray
-        (FRESNEL_STEPS + 1, 3) C-contiguous float64 reflectances.
-    """
-    return np.ascontiguousarray(fresnel(np.linspace(0.0, 1.0, FRESNEL_STEPS + 1)), dtype=np.float64)
-
-
-@njit(cache=True, inline="always")
-def _table(table, cos, c):  # pragma: no cover - compiled
-    if table.shape[0] == 2 and table[0, c] == table[1, c]:  # a constant (no Fresnel: F = 1)
-        return table[0, c]
-    x = min(max(cos, 0.0), 1.0) * (table.shape[0] - 1)
-    i = min(int(x), table.shape[0] - 2)
-    t = x - i
-    return table[i, c] * (1 - t) + table[i + 1, c] * t
-
-
-@njit(cache=True, inline="always")
-def _g1(cos, a2):  # pragma: no cover - compiled
-    return 2 * cos / (cos + math.sqrt(a2 + (1 - a2) * cos * cos))
-
-
-@njit(cache=True, inline="always")
-def _view_term(model, p, co):  # pragma: no cover - compiled
-    """G1(wo) / (4 n·wo) of the microfacet models (GGX, coat), 0 for the others or a view below the surface."""
-    if (model != GGX_MODEL and model != COAT and model != PLASTIC) or co <= 0.0:
-        return 0.0
-    return _g1(co, p[0] * p[0]) / (4 * co)
-
-
-@njit(cache=True, inline="always")
-def brdf_times_cosine(model, p, table, i0, i1, i2, o0, o1, o2, n0, n1, n2, view_term, out):  # pragma: no cover
-    """out[:] = f_r(wi, wo; n) · (n·wi) for one pair, the model numbered ``model`` with parameters ``p``.
-
-    ``model``, ``p`` and ``table`` are the classes' ``kernel()``; 0 below the surface. The same formulas as the
-    classes' ``eval``, tested equal. ``view_term`` is :func:`_view_term` of n·wo (the part that depends on the view
-    only, made once per point).
-
-    Parameters
-    ----------
-    model : int
-        The model number, ``LAMBERT`` … ``PLASTIC``.
-    p : numpy.ndarray
-        The model's float64 parameters.
-    table : numpy.ndarray
-        (M, 3) float64 Fresnel table (for ``PLASTIC``: column 0 F, column 1 t(μ)).
-    i0, i1, i2 : float
-        wi, unit, toward the light.
-    o0, o1, o2 : float
-        wo, unit, toward the eye.
-    n0, n1, n2 : float
-        The unit normal; wi, wo and n in one frame.
-    view_term : float
-        :func:`_view_term` of this model at n·wo.
-    out : numpy.ndarray
-        (3,) float64, overwritten with f_r · (n·wi) in RGB.
-    """
-    ci, co = n0 * i0 + n1 * i1 + n2 * i2, n0 * o0 + n1 * o1 + n2 * o2
-    if ci <= 0.0 or co <= 0.0:
-        out[0] = out[1] = out[2] = 0.0
-        return
-    if model == LAMBERT:
-        for c in range(3):
-            out[c] = p[c] / math.pi * ci
-        return
-    if model == PHONG:
-        r = 2 * co * n0 * i0 + 2 * co * n1 * i1 + 2 * co * n2 * i2 - (o0 * i0 + o1 * i1 + o2 * i2)  # r·wi
-        v = p[1] * (p[0] + 2) / (2 * math.pi) * max(r, 0.0) ** p[0] * ci
-        out[0] = out[1] = out[2] = v
-        return
-    # the half vector h = (wi + wo)/|wi + wo| through dot products: |wi + wo| = √(2 + 2 wi·wo), n·h = (n·wi + n·wo)
-    # / |wi + wo|, h·wi = (1 + wi·wo) / |wi + wo|
-    io = i0 * o0 + i1 * o1 + i2 * o2
-    norm = math.sqrt(max(2.0 + 2.0 * io, 1e-300))
-    ch = max((ci + co) / norm, 0.0)
-    if model == BLINN:
-        v = p[1] * ch ** p[0] * ci
-        out[0] = out[1] = out[2] = v
-        return
-    a2 = p[0] * p[0]
-    d = a2 / (math.pi * (ch * ch * (a2 - 1) + 1) ** 2) if ch > 0 else 0.0
-    spec = d * _g1(ci, a2) * view_term  # times n·wi already: D G1(wi) G1(wo) / (4 n·wo)
-    hi = (1.0 + io) / norm
-    if model == PLASTIC:  # table column 0: the dielectric's F, column 1: the coat's transmittance t(μ)
-        f = spec * _table(table, hi, 0)
-        through = _table(table, ci, 1) * _table(table, co, 1) * ci
-        for c in range(3):
-            out[c] = f + through * p[1 + c]
-        return
-    for c in range(3):
-        out[c] = spec * _table(table, hi, c)
-    if model == COAT:
-        for c in range(3):
-            through = (1 - _table(table, ci, c)) * (1 - _table(table, co, c))
-            out[c] += through * p[1 + c] / math.pi * ci
-
-
-@njit(cache=True, parallel=True)
-def _eval_cosine_many(model, p, table, wi, wo, n, out):  # pragma: no cover - compiled
-    for k in prange(wi.shape[0]):
-        value = np.empty(3)
-        co = wo[k, 0] * n[k, 0] + wo[k, 1] * n[k, 1] + wo[k, 2] * n[k, 2]
-        brdf_times_cosine(model, p, table, wi[k, 0], wi[k, 1], wi[k, 2], wo[k, 0], wo[k, 1], wo[k, 2], n[k, 0],
-                          n[k, 1], n[k, 2], _view_term(model, p, co), value)
-        out[k, 0], out[k, 1], out[k, 2] = value[0], value[1], value[2]
-
-
-def compiled_eval_cosine(brdf: BRDF, wi: np.ndarray, wo: np.ndarray, n: np.ndarray) -> np.ndarray:
-    """f_r · (n·wi) by the compiled path, for (..., 3) arrays that broadcast (tests hold it to ``eval``).
-
-    Parameters
-    ----------
-    brdf : BRDF
-        The BRDF, evaluated through its :meth:`~BRDF.kernel`.
-    wi : numpy.ndarray
-        (..., 3) unit directions toward the light.
-    wo : numpy.ndarray
-        (..., 3) unit directions toward the eye.
-    n : numpy.ndarray
-        (..., 3) unit normals; the three arrays in one frame, broadcasting together.
-
-    Returns
-    -------
-    numpy.ndarray
-        (M, 3) float64 f_r · (n·wi), the broadcast shape's leading dimensions flattened into M; 0 below the surface.
-    """
-    wi, wo, n = (np.ascontiguousarray(a, dtype=np.float64).reshape(-1, 3) for a in np.broadcast_arrays(wi, wo, n))
-    out = np.empty((len(wi), 3))
-    _eval_cosine_many(*brdf.kernel(), wi, wo, n, out)
-    return out
-
-
-@njit(cache=True, parallel=True)
-def reflected_sums(model, p, table, normals, views, dirs, weighted, out):  # pragma: no cover - compiled
-    """out[t] = Σ_s f_r(d_s, v_t; n_t) (n_t·d_s)⁺ W_s for every point t, summed exactly — O(points × sources).
-
-    That is the reflected radiance at each point of sources of (RGB) weight W_s = L_s Δω_s in unit directions d_s;
-    sources below a point's surface (n_t·d_s ≤ 0) are skipped.
-
-    Parameters
-    ----------
-    model : int
-        The model number of ``brdf.kernel()``.
-    p : numpy.ndarray
-        The model's float64 parameters (``brdf.kernel()``).
-    table : numpy.ndarray
-        (M, 3) float64 Fresnel table (``brdf.kernel()``).
-    normals : numpy.ndarray
-        (T, 3) float64 unit normals n_t, one per point.
-    views : numpy.ndarray
-        (T, 3) float64 unit directions v_t from each point toward the eye.
-    dirs : numpy.ndarray
-        (S, 3) float64 unit directions d_s toward the sources; normals, views and dirs in one frame (the world frame in
-        :mod:`lightprobe.glossy.radiance`).
-    weighted : numpy.ndarray
-        (S, 3) float64 W_s = L_s Δω_s: radiance times solid angle (sr).
-    out : numpy.ndarray
-        (T, 3) float64, overwritten with the reflected radiance, in the units of L.
-    """
-    for t in prange(normals.shape[0]):
-        value = np.empty(3)
-        acc0 = acc1 = acc2 = 0.0
-        n0, n1, n2 = normals[t, 0], normals[t, 1], normals[t, 2]
-        o0, o1, o2 = views[t, 0], views[t, 1], views[t, 2]
-        view_term = _view_term(model, p, n0 * o0 + n1 * o1 + n2 * o2)
-        for s in range(dirs.shape[0]):
-            if n0 * dirs[s, 0] + n1 * dirs[s, 1] + n2 * dirs[s, 2] <= 0.0:
-                continue
-            brdf_times_cosine(model, p, table, dirs[s, 0], dirs[s, 1], dirs[s, 2], o0, o1, o2, n0, n1, n2, view_term,
-                              value)
-            acc0 += value[0] * weighted[s, 0]
-            acc1 += value[1] * weighted[s, 1]
-            acc2 += value[2] * weighted[s, 2]
-        out[t, 0], out[t, 1], out[t, 2] = acc0, acc1, acc2
-
-
-# ---- estimates and names ----------------------------------------------------------------------------------------
-def directional_albedo(brdf: BRDF, cos_view: np.ndarray, samples: int = 4096, seed: int = 0) -> np.ndarray:
-    """ρ(wo) = ∫ f_r(wi, wo) (n·wi) dwi, RGB, at views with n·wo = ``cos_view``, by importance sampling the BRDF.
-
-    ``samples`` stratified samples of :meth:`BRDF.sample` per view (a white furnace: the light reflected under a
-    uniform sky of radiance 1). The normal is +z and the views lie in the x–z plane.
-
-    Parameters
-    ----------
-    brdf : BRDF
-        The BRDF.
-    cos_view : numpy.ndarray
-        (M,) cosines n·wo of the views, in [0, 1].
-    samples : int, default 4096
-        Samples per view, rounded up to a square: a ⌈√samples⌉² grid of strata, each jittered once.
-    seed : int, default 0
-        Seed of the jitter (:func:`numpy.random.default_rng`).
-
-    Returns
-    -------
-    numpy.ndarray
-        (M, 3) float64 albedo ρ per view.
-    """
-    cos_view = np.asarray(cos_view, dtype=np.float64)
-    n = np.array([0.0, 0.0, 1.0])
-    wo = np.stack([np.sqrt(1 - cos_view ** 2), np.zeros_like(cos_view), cos_view], axis=-1)[:, None, :]
-    side = int(math.ceil(math.sqrt(samples)))
-    rng = np.random.default_rng(seed)
-    grid = (np.stack(np.meshgrid(np.arange(side), np.arange(side), indexing="ij"), -1).reshape(-1, 2)
-            + rng.random((side * side, 2))) / side
-    wi, pdf = brdf.sample(wo, n, grid[None, :, :])
-    f = brdf.eval(wi, wo, n) * np.maximum(wi[..., 2], 0.0)[..., None]
-    weight = np.where(pdf[..., None] > 0, f / np.where(pdf > 0, pdf, 1.0)[..., None], 0.0)
-    return weight.mean(axis=1)
-
-
-BRDFS = {"lambert": Lambert, "phong": Phong, "blinn": BlinnPhong, "ggx": GGX, "coat": Coat, "plastic": Plastic}
-
-
+# ---- names ------------------------------------------------------------------------------------------------------
 def _number(key: str, text: str) -> float:
     try:
         value = float(text)
@@ -1417,7 +911,8 @@ def parse_brdf(spec: str) -> BRDF:
     Returns
     -------
     BRDF
-        A :class:`Lambert`, :class:`Phong`, :class:`BlinnPhong`, :class:`GGX`, :class:`Coat` or :class:`Plastic`.
+        A :class:`Lambert`, :class:`Phong`, :class:`BlinnPhong`, :class:`GGX`, or a layered
+        :class:`~lightprobe.glossy.layered.Coat` or :class:`~lightprobe.glossy.layered.Plastic`.
 
     Raises
     ------
@@ -1426,9 +921,12 @@ def parse_brdf(spec: str) -> BRDF:
         finite number, or out of its range; an RGB value of other than one or three numbers; more than one Fresnel
         term for ``ggx``, or one of ``eta`` and ``k`` without the other.
     """
+    from .layered import Coat, Plastic  # built on this module's GGX and Lambert: imported here, not at the top
+
+    models = {"lambert": Lambert, "phong": Phong, "blinn": BlinnPhong, "ggx": GGX, "coat": Coat, "plastic": Plastic}
     name, _, rest = str(spec).strip().partition(":")
-    if name not in BRDFS:
-        raise UsageError(f"unknown BRDF {name!r}; known: {', '.join(BRDFS)}")
+    if name not in models:
+        raise UsageError(f"unknown BRDF {name!r}; known: {', '.join(models)}")
     options: dict[str, str] = {}
     for item in filter(None, (p.strip() for p in rest.split(","))):
         key, eq, value = item.partition("=")
@@ -1447,7 +945,7 @@ def parse_brdf(spec: str) -> BRDF:
         brdf = GGX(_number("alpha", options.get("alpha", "0.2")), _fresnel(options))
     else:
         values = {k: (_triple(k, v) if k == "albedo" else _number(k, v)) for k, v in options.items()}
-        brdf = BRDFS[name](**values)
+        brdf = models[name](**values)
     if _reflects_nothing(brdf):
         warnings.warn(f"BRDF {spec.strip()!r} reflects no light: its maps are black", LightprobeWarning,
                       stacklevel=2)

@@ -8,7 +8,7 @@ How it is computed (:func:`reflected_radiance`): the map is resampled (energy-co
 brightest texels (a sun) are taken out as point sources (:func:`lightprobe.glossy.prefilter.split_peaks`); the bounded
 rest is box-filtered down to the coarsest level whose texels are at most an eighth of the BRDF's lobe across
 (:meth:`~lightprobe.glossy.brdf.BRDF.lobe_width`), within a budget of evaluations; every texel of that level and every
-peak is then summed exactly by a compiled kernel (:func:`lightprobe.glossy.brdf.reflected_sums`). Wide lobes read a
+peak is then summed exactly by a compiled kernel (:func:`lightprobe.glossy.brdf_sums.reflected_sums`). Wide lobes read a
 coarse level (Lambert: 8² faces), sharp ones a fine one; accuracy against a brute-force sum over every texel of the
 full cube is measured in tests/test_radiance.py and the level used is stated with each map.
 
@@ -25,7 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .brdf import BRDF, reflected_sums
+from .brdf import BRDF
+from .brdf_sums import reflected_sums
 from ..maps import EnvMap, resample
 from ..util.errors import UsageError
 from ..maps.layouts import CUBE, Sphere

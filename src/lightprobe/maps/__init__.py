@@ -7,8 +7,10 @@ from .files import file_shape, from_image, read_envmap, to_image
 from .envmap import EnvMap, frozen_array, owned, pixel_geometry
 from .pixels import bad_pixel_counts, repair
 
-_RESAMPLING = ("MAX_FOOTPRINT_RATIO", "auto_samples", "box_reduce", "check_size", "link_kernels", "resample",
-               "resample_memory", "resample_strips", "Resampler")
+# the resampling's public names, each with its module in maps/resampling (imported on first use)
+_RESAMPLING = {"MAX_FOOTPRINT_RATIO": "resampler", "auto_samples": "resampler", "box_reduce": "resampler",
+               "check_size": "budget", "link_kernels": "resampler", "resample": "resampler",
+               "resample_memory": "budget", "resample_strips": "resampler", "Resampler": "cached"}
 
 __all__ = ["EnvMap", "read_envmap", "from_image", "to_image", "file_shape", "pixel_geometry", "frozen_array",
            "owned", "bad_pixel_counts", "repair", *_RESAMPLING]
@@ -16,9 +18,9 @@ __all__ = ["EnvMap", "read_envmap", "from_image", "to_image", "file_shape", "pix
 
 def __getattr__(name: str):
     if name in _RESAMPLING:
-        from .resampling import resampler as resampling
+        from importlib import import_module
 
-        return getattr(resampling, name)
+        return getattr(import_module(f"{__name__}.resampling.{_RESAMPLING[name]}"), name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 

@@ -182,7 +182,8 @@ def mitsuba_bsdf(mesh: MeshInstance, folder: Path, index: int) -> dict:
     UsageError
         The material's BRDF has no Mitsuba 3 BSDF with the same formula.
     """
-    from ..glossy.brdf import GGX, Conductor, Lambert, Plastic, Schlick
+    from ..glossy.brdf import GGX, Conductor, Lambert, Schlick
+    from ..glossy.layered import Plastic
 
     brdf = mesh.material.brdf
     if brdf is None:

@@ -1,13 +1,13 @@
 """A conversion's flux correction: the pre-filter after which a sun in any source pixel keeps its energy exactly.
 
 A resampling is linear: a sun wholly in source pixel j reaches the target as column j of the weights, and its energy
-there is D_j = Σ_t Ω_t W_tj (:func:`lightprobe.maps.resampling.resampler.delivered`). It should be the pixel's solid angle Ω_j.
+there is D_j = Σ_t Ω_t W_tj (:func:`lightprobe.maps.resampling.taps.delivered`). It should be the pixel's solid angle Ω_j.
 What is left between the two after the texel balance (:mod:`lightprobe.maps.resampling.balance`) is the target's quadrature:
 k×k subsamples per target pixel sum a spline that is not constant over the pixel — a cube's corner texels seen from
 a lat-long of 32 rows (2.4 %), a disc target's coarse pixels (1.8 %), the rings where the per-pixel rate steps
 (0.2–0.4 %), a lat-long's pixels read by the 20–40° rim rings of a 16–32-pixel disc (0.26–0.74 %). It depends on
 the pair of grids, so it is measured for the pair, and the source is pre-filtered so that every pixel's effective
-delivery is Ω_j (which conversions are: :func:`lightprobe.maps.resampling.resampler._flux_corrects`):
+delivery is Ω_j (which conversions are: :func:`_flux_corrects`):
 
     x'_p = x_p + Σ_q w_pq (x_q − x_p),   w_pq ≥ 0 on the grid's edges (and a cube's seams), Σ_q w_pq < 1.
 
@@ -25,17 +25,24 @@ direction: :data:`lightprobe.maps.resampling.fused.SOURCE_RIM_MARK`; an angular 
 alone, up to 3000 % off, as read they were too uneven for the flow). Weights stay small: 0.5–4 % at
 the worst pixel at the sizes maps are converted at (benchmarks/bench_energy.py --part flux), up to 30 % for 20-pixel
 mirror balls; over 50 % only for a few dozen pixels by a rim direction (up to 95 % in a mirror ball's outer
-rings); a pixel's total is capped at :data:`MAX_WEIGHT`, so the blend stays convex whatever the input."""
+rings); a pixel's total is capped at :data:`MAX_WEIGHT`, so the blend stays convex whatever the input.
+
+A conversion's correction is measured from the kernel's adjoint (its deliveries) when the conversion is first made and
+kept for the last pairs of grids (:func:`_flux_stencil`)."""
 
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..envmap import pixel_solid_angles
 from ..layout_base import _padding_index
 from ..layouts import CUBE, Layout
+from . import pole_rows
+from .taps import DISCS, _face_layout, _raw_pixel_delivery
 
 MAX_WEIGHT = 0.95  # a pixel's weights are scaled down to this total where a flow through it would exceed it. Only
 #                   pixels by a rim direction need over 0.5 (a few dozen, within 18° of it): the source pixels a
@@ -301,3 +308,83 @@ def _stencil(delivery, flow_h, flow_v, seams) -> Stencil:
     weight = np.abs(f) / np.where(flat[reader] > 0, flat[reader], 1.0)
     keep = weight > 0
     return Stencil(right, left, down, up, (reader[keep], read[keep], weight[keep].astype(np.float32)), 0.0)
+
+
+# ---- which conversions are corrected, and the corrections kept ----------------------------------------------------
+# While lightprobe.maps.resampling.resampler.link_kernels runs its small map: .small (whose memory the resampler does
+# not check), and .uncorrected where the map it stands for is not corrected (read by _corrected).
+_LINKING = threading.local()
+
+
+# Lat-long sources are flux-corrected into discs up to this many pixels (as the conversion reads them, after any box
+# reduction): 2048×1024. A 16–32-pixel disc's outer rings span 20–40° each, and a one-pixel sun read by them came out
+# 0.26–0.74 % off (no rate fixes a pixel that straddles the rim). Larger discs hold most of the 0.2 % by their rates
+# (LATLONG_SPHERE_MAX_SAMPLES, fused.LATLONG_ANGULAR_SPACING) and, to the rim direction, by their rim pixels' rows
+# round it (fused._rim_subsamples), but not all of it: where a ball's rim-row pixel meets a plain one (lat-long
+# 2048×1024 → mirror ball 512, 0.22 % 10–25° from its rim direction; 1536×768 → 384, 0.25 %), where the rates step
+# mid-ball (1024×512 → 817, the default size, 0.33 %), at an angular map's rim direction (2048×1024 → 1634, 0.34 %):
+# corrected, each is exact. It costs 2.4× the conversion the first time (2048×1024 → mirror ball 512–1024, 1.1–1.5 s
+# → 2.7–3.6 s; then the weights are cached) and ~130 B a source pixel while it is made (+270 MB at 2048×1024). A 4k
+# lat-long's correction would hold more than convert may (tests/test_limits.py: 3× the map): there it is not made.
+# Its rows alone hold the bar into a mirror ball since lookups are 0.35 source pixels apart there
+# (fused.LATLONG_SPHERE_SPACING), a side may take more than k_max where the other needs fewer (fused._within_budget)
+# and the ball's long ring pixels are read round its rim direction (fused._rim_polar): 4096×2048 → mirror ball 1024
+# 0.16 % (was 0.41 %), → 3268, its default size, 0.12 % (0.30 %). Into an angular map, since the pixels by its rim
+# direction take lookups closer there (fused.ANGULAR_RIM_SPACING): → angular 3268 0.15 % (0.26 %; 0.12 % at the rim
+# direction).
+LATLONG_FLUX_MAX_PIXELS = 1 << 21
+
+
+def _flux_corrects(source_layout: Layout, source_pixels: int, target: Layout) -> bool:
+    """Whether a conversion from ``source_layout`` (``source_pixels`` as read) into ``target`` is flux-corrected (with
+    its rate left automatic): every source but a lat-long; a lat-long into a disc up to :data:`LATLONG_FLUX_MAX_PIXELS`,
+    and into anything when it has fewer rows than the rational pole rows need
+    (:data:`lightprobe.maps.resampling.pole_rows.MIN_HEIGHT`: its first rows keep the plain spline, a sun there
+    +22–25 %). Into a lat-long or a cube a larger lat-long keeps a sun's energy by its own construction — the polar
+    rows' reductions and rational weights, measured in tests/test_resample.py."""
+    if source_layout.name != "latlong":
+        return True
+    if math.isqrt(source_pixels // 2) < pole_rows.MIN_HEIGHT:  # a lat-long of H rows has 2H² pixels
+        return True
+    return target.name in DISCS and source_pixels <= LATLONG_FLUX_MAX_PIXELS
+
+
+def _corrected(source_layout: Layout, source_grid: tuple[int, ...], target: Layout, samples: int | None) -> bool:
+    """Whether this conversion gets a flux correction: :func:`_flux_corrects`, with the rate left automatic (and not
+    while :func:`lightprobe.maps.resampling.resampler.link_kernels` runs a small map for a large one that is not
+    corrected)."""
+    if getattr(_LINKING, "uncorrected", False):
+        return False
+    return samples is None and _flux_corrects(source_layout, math.prod(source_grid), _face_layout(target))
+
+
+_FLUX_CACHE: dict = {}
+_FLUX_LOCK = threading.Lock()
+_FLUX_CACHE_BYTES = 256 << 20  # the corrections a process keeps (a batch converts one pair of grids many times)
+
+
+def _flux_stencil(source_layout: Layout, source_grid: tuple[int, ...], target: Layout, filled_grid, rotation,
+                  samples: int | None, rates: tuple[int, int], delivery_of) -> Stencil | None:
+    """The flux correction of this conversion, or None where none is made (see
+    :func:`_flux_corrects`; nor where the rate is given by hand, ``samples``: the kernel compared as it is).
+    ``rates`` (k, k_max) are the conversion's; ``delivery_of(omega_t)`` gives each source pixel's delivery, flat,
+    as the kernel reads them. Kept for the last pairs of grids, up to :data:`_FLUX_CACHE_BYTES` of weights, keyed by
+    the layouts themselves (a turned mirror ball is named "sphere" too)."""
+    if not _corrected(source_layout, source_grid, target, samples):
+        return None
+    target = _face_layout(target)  # a cross target is filled as cube faces
+    key = (source_layout, source_grid, target, tuple(filled_grid), rates,
+           None if rotation is None else np.asarray(rotation, np.float64).tobytes())
+    with _FLUX_LOCK:
+        if key in _FLUX_CACHE:
+            return _FLUX_CACHE[key]
+    omega_t = pixel_solid_angles(target, tuple(filled_grid)).reshape(-1)
+    per_pixel = _raw_pixel_delivery(delivery_of(omega_t), source_layout, source_grid)
+    omega_s = pixel_solid_angles(source_layout, source_grid)
+    face_shape = (-1,) + tuple(source_grid[-2:])
+    stencil = stencil_for(source_layout, per_pixel.reshape(face_shape), omega_s.reshape(face_shape))
+    with _FLUX_LOCK:  # threads converting at once (a Dask worker's) share the cache
+        while _FLUX_CACHE and sum(kept.nbytes for kept in _FLUX_CACHE.values()) + stencil.nbytes > _FLUX_CACHE_BYTES:
+            _FLUX_CACHE.pop(next(iter(_FLUX_CACHE)))  # the oldest first
+        _FLUX_CACHE[key] = stencil
+    return stencil

@@ -1,6 +1,6 @@
 """The resampler's compiled kernel: every target pixel's k×k footprint lookups in one pass, no whole-grid temporaries.
 
-:func:`resample_into` does what the numpy formulation in :mod:`lightprobe.maps.resampling.resampler` describes — per target
+:func:`resample_into` does what the numpy formulation in :mod:`lightprobe.maps.resampling.reference` describes — per target
 pixel, k×k stratified subsamples, each weighted by the target's ``dω/(du dv)`` and looked up in the source with a
 cubic B-spline, the weighted mean stored — but it computes each subsample's direction, weight and source
 coordinates in registers instead of as float64 grids, so its memory is the output alone and its time is linear in

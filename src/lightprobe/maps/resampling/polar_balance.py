@@ -22,18 +22,23 @@ correction makes each source pixel exact), nor one that reads the source's rows 
 (:mod:`lightprobe.maps.resampling.separable`), nor an unturned one: its target is symmetric about the source's poles there
 (2048×1024 → cubes of 50–591, 1049 rows → cube 80, → lat-long 300: weights under 0.03 %, no pixel's gain moved in
 the fourth decimal of a percent), and measuring would load the adjoint's compiled code for nothing (5–15 MB at the
-peak of a 4k map's convert, over the 3× the map tests/test_limits.py holds).
+peak of a 4k map's convert, over the 3× the map tests/test_limits.py holds). A conversion's balance is measured
+when the conversion is first made and kept for the last pairs of grids (:func:`_cell_balance`).
 """
 
 from __future__ import annotations
 
 import math
+import threading
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..layouts import Layout
-from . import polar
+from ...util import limits
+from ..layouts import LATLONG, Layout
+from . import fused, polar
+from .taps import _Taps
 
 MAX_CELLS = 64  # rows reduced to at most this many cells are balanced (with more, each cell's basis is narrow: the
 #                 rows of 16–64 cells of 2048×1024 → a turned cube of 300 were within 0.012 % of their means)
@@ -176,3 +181,62 @@ def near_pole(target: Layout, grid: tuple[int, ...], rotation: np.ndarray | None
     inside = (r < rows[br + 1][:, None, None]) & (c < cols[bc + 1][:, None, None])
     flat = (f[:, None, None] * h + r) * w + c
     return np.sort(flat[inside])
+
+
+# ---- a conversion's balance, measured by the compiled adjoint and kept -------------------------------------------
+_CELL_CACHE: dict = {}
+_CELL_CACHE_PAIRS = 16  # balances a process keeps (a few kB each)
+_CELL_LOCK = threading.Lock()
+
+
+def _cell_balance(source_grid: tuple[int, int], found: np.ndarray, filled: Layout, grid: tuple[int, ...], k: int,
+                  k_max: int, steps: polar.Steps, rotation) -> CellBalance | None:
+    """The balance of a lat-long source's coarsest polar rows in this conversion, or None where it has none; kept
+    for the last pairs of grids. Measured by the compiled adjoint, a pole at a time, on the target pixels by that pole
+    alone and into its balanced rows' cells alone."""
+    pole_caps = caps(found, source_grid[-1])
+    if not pole_caps:
+        return None
+    key = (source_grid, filled, tuple(grid), k, k_max, found.tobytes(),
+           None if rotation is None else np.asarray(rotation, np.float64).tobytes())
+    with _CELL_LOCK:
+        if key in _CELL_CACHE:
+            return _CELL_CACHE[key]
+    taps = _Taps(LATLONG, source_grid, filled, filled.size_of(grid), k, k_max, steps, rotation)
+    parts = []
+    for sign, rows, angle in pole_caps:
+        first, end = cell_span(found, source_grid[-1], rows)
+        kept = near_pole(filled, grid, rotation, sign, angle)
+        per_cell = _kept_delivery(taps, filled, grid, kept, taps.source_pixels + first, end - first)
+        parts += balance_of(per_cell, first, found, source_grid[-1], rows)
+    cells = joined(parts)
+    with _CELL_LOCK:
+        while len(_CELL_CACHE) >= _CELL_CACHE_PAIRS:
+            _CELL_CACHE.pop(next(iter(_CELL_CACHE)))
+        _CELL_CACHE[key] = cells
+    return cells
+
+
+def _kept_delivery(taps: _Taps, filled: Layout, grid: tuple[int, ...], kept: np.ndarray, base: int,
+                   size: int) -> np.ndarray:
+    """Σ_t Ω_t W_ti over the target pixels ``kept`` (sorted, flat over the target's lines) for the ``size`` tap
+    indices from ``base`` on (float64): the compiled adjoint on each run of lines that holds a kept pixel, the
+    others weighing 0 there (the kernel skips them)."""
+    omega_kept = filled.solid_angles_of(tuple(grid), kept)
+    lines = np.unique(kept // taps.width)
+    runs = np.split(lines, np.flatnonzero(np.diff(lines) > 1) + 1)
+    runs = [part for run in runs for part in np.array_split(run, -(-len(run) // 32))]  # ≤ 32 lines of weights
+    threads = max(1, min(limits.threads(), len(runs)))
+
+    def thread_total(t: int) -> np.ndarray:
+        total = np.zeros(size)
+        for run in runs[t::threads]:
+            first, last = int(run[0]), int(run[-1]) + 1
+            lo, hi = np.searchsorted(kept, [first * taps.width, last * taps.width])
+            omega_t = np.zeros((last - first) * taps.width)
+            omega_t[kept[lo:hi] - first * taps.width] = omega_kept[lo:hi]
+            fused.footprint_delivery(*taps.kernel_args, first, last, omega_t, taps.max_taps, total, base)
+        return total
+
+    with ThreadPoolExecutor(threads) as pool:
+        return np.sum(list(pool.map(thread_total, range(threads))), axis=0)

@@ -14,7 +14,7 @@ with the a_j solved so that each of the first ROWS rows carries the same small r
 them none: ε ≈ 0.25 / ROWS². ROWS grows with the map (:data:`TIERS`): 24 rows (ε = 0.043 %) from 96 rows up, 16
 (0.098 %) from 64 and 12 (0.17 %) from 48 — the rows of both poles must not meet. Shorter maps keep the plain
 B-spline (their first row +25 %): a resampler never box-reduces a source to fewer than 48 rows, and flux-corrects
-a source that has fewer (:func:`lightprobe.maps.resampling.resampler._flux_corrects`). ``tests/test_resample.py`` measures ε
+a source that has fewer (:func:`lightprobe.maps.resampling.flux._flux_corrects`). ``tests/test_resample.py`` measures ε
 with the sin θ measure of real grids.
 
 The factors are solved by :func:`solve` on the limit measure dω ∝ (y + ½) dy (y: the row coordinate, row j's centre
