@@ -10,6 +10,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -128,3 +130,24 @@ def test_print_the_threejs_bake_table():
     """Not a check: the figures (run with -s), after the tests above."""
     for (kind, probe), (a, b) in sorted(FIGURES.items()):
         print(kind, probe, [f"{100 * x:.1f} %" for x in a], [f"{100 * x:.1f} %" for x in b])
+
+
+def test_the_cube_holds_threejs_levels_in_the_encoding_asked(tmp_path):
+    """Float32 on request; the levels from the size down to 8×8 only, each at three.js's lodToRoughness; the mirror
+    level is the probe seen through three.js's cube x flip (world +X at cube +Z)."""
+    from lightprobe.bake import BakeOptions, bake
+    from lightprobe.exports.ktx2 import VkFormat, read_ktx2
+    from lightprobe.maps import EnvMap
+    from lightprobe.maps.layouts import LATLONG
+
+    env = EnvMap(spot_map(64), LATLONG)
+    out = bake(env, tmp_path / "b", BakeOptions(("threejs",), size=32, skybox_size=16,
+                                                encodings={"threejs": "rgba32f"}))["threejs"]
+    texture = read_ktx2(out / "environment.ktx2")
+    assert texture.vk_format == VkFormat.R32G32B32A32_SFLOAT and texture.face_count == 6
+    assert [level.shape[1] for level in texture.levels] == [32, 16, 8]
+    entry = json.loads((out / "manifest.json").read_text())["files"][0]
+    assert entry["roughness"] == pytest.approx([0.0, 1 - np.sqrt(0.5), 1.0], abs=1e-6)
+    # the spot (world (0.6, 0.5, −0.62)) is at cube direction (z, y, x) = (−0.62, 0.5, 0.6): face −X's brightest
+    mirror = np.asarray(texture.levels[0])[..., :3].sum(axis=-1)
+    assert np.unravel_index(np.argmax(mirror), mirror.shape)[0] == 1
