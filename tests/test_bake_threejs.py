@@ -135,6 +135,9 @@ def test_print_the_threejs_bake_table():
 def test_the_cube_holds_threejs_levels_in_the_encoding_asked(tmp_path):
     """Float32 on request; the levels from the size down to 8×8 only, each at three.js's lodToRoughness; the mirror
     level is the probe seen through three.js's cube x flip (world +X at cube +Z)."""
+    if missing_engines():
+        pytest.fail(f"the engine tests need {', '.join(missing_engines())}: run 'bash setup.sh --test'",
+                    pytrace=False)
     from lightprobe.bake import BakeOptions, bake
     from lightprobe.exports.ktx2 import VkFormat, read_ktx2
     from lightprobe.maps import EnvMap
@@ -151,3 +154,11 @@ def test_the_cube_holds_threejs_levels_in_the_encoding_asked(tmp_path):
     # the spot (world (0.6, 0.5, −0.62)) is at cube direction (z, y, x) = (−0.62, 0.5, 0.6): face −X's brightest
     mirror = np.asarray(texture.levels[0])[..., :3].sum(axis=-1)
     assert np.unravel_index(np.argmax(mirror), mirror.shape)[0] == 1
+    # the independent reader (npm ktx-parse) finds the same cube, levels and bytes
+    from lightprobe_engines.runtimes import ktx_parse
+
+    for parsed, name in zip(ktx_parse([out / "environment.ktx2", out / "skybox.ktx2"]), ("environment", "skybox")):
+        mine = read_ktx2(out / f"{name}.ktx2")
+        assert (parsed["faceCount"], parsed["levelCount"], parsed["vkFormat"], parsed["pixelWidth"]) == (
+            6, mine.level_count, int(mine.vk_format), mine.width)
+        assert [lv["byteLength"] for lv in parsed["levels"]] == [level.nbytes for level in mine.levels]
