@@ -19,10 +19,10 @@ import numpy as np
 import pytest
 
 from conftest import shared
-from test_engines import pinhole_luminance  # the same camera as the page's skyView
 from lightprobe_engines.runtimes import LUMINANCE, Browser, Server, missing_engines, white_sphere_glb
+from test_engines import pinhole_luminance  # the same camera as the page's skyView
+
 from lightprobe.maps import EnvMap, read_envmap, resample
-from lightprobe.maps.images import write_image
 from lightprobe.maps.layouts import CUBE, LATLONG
 
 pytestmark = pytest.mark.xdist_group("engines")  # one worker, so one browser start for all engine checks
@@ -70,7 +70,8 @@ def direct_sum(source: EnvMap, r: np.ndarray, alpha: float) -> np.ndarray:
 
 def reference_ibl(env: EnvMap, size: int) -> bytes:
     """The IBL KTX1 cmgen's levels would hold, by brute force: each level the direct sum of the GGX lobe at its
-    roughness over every texel of a REFERENCE² cube of ``env``; the SH fitted (least squares) to brute-force irradiance."""
+    roughness over every texel of a REFERENCE² cube of ``env``; the SH fitted (least squares) to brute-force
+    irradiance."""
     from lightprobe.bake.engines.filament import filament_alphas, level_count
     from lightprobe.exports.ktx1 import ktx1_bytes
     from lightprobe.exports.sh import premultiply_basis_constants
@@ -130,6 +131,25 @@ def page(files):
     server.close()
 
 
+def test_filament_parses_our_files_as_cmgen_lays_them_out(files):
+    """Filament's own Ktx1Bundle (its web build, in Node) reads our IBL as cmgen's: an R11F_G11F_B10F cube of 64²,
+    32², 16² (cmgen stops at 16²) whose 'sh' key gives createIblFromKtx1 the numbers of sh.txt; the skybox one level.
+    And the roughness per level is cmgen's: a 256² cube holds r = 0, 0.134, 0.293, 0.5, 1 (lodToPerceptualRoughness
+    of i/4)."""
+    from lightprobe.bake.engines.filament import level_count, perceptual_roughness
+    from lightprobe_engines.runtimes import filament_ktx1
+
+    folder, _ = files
+    ibl, sky = filament_ktx1([folder / "spot-ours_ibl.ktx", folder / "spot-ours_skybox.ktx"])
+    assert ibl["info"]["glInternalFormat"] == 0x8C3A and ibl["cube"] and ibl["levels"] == 3, ibl["info"]
+    assert sky["cube"] and sky["levels"] == 1 and sky["info"]["pixelWidth"] == SKYBOX, sky["info"]
+    text = (folder / "spot-ours" / "filament" / "sh.txt").read_text()
+    numbers = np.array([[float(v) for v in line.split(")")[0].strip("( ").split(",")] for line in text.splitlines()])
+    assert np.allclose(np.reshape(ibl["shFloats"], (9, 3)), numbers, rtol=1e-5, atol=1e-7), (ibl["shFloats"], text)
+    assert [level_count(s) for s in (16, 32, 64, 256, 1024)] == [5, 2, 3, 5, 7]
+    assert np.allclose(perceptual_roughness(5), [0, 1 - np.sqrt(0.75), 1 - np.sqrt(0.5), 0.5, 1])
+
+
 def luminance(canvas: str) -> np.ndarray:
     """Linear luminance of a canvas the page returned (post-processing is off: the bytes are linear)."""
     rgba = np.frombuffer(base64.b64decode(canvas), np.uint8).reshape(CANVAS, CANVAS, 4)
@@ -176,7 +196,7 @@ def test_filament_lights_spheres_from_our_bake_as_from_brute_force(page, files, 
     """The diffuse sphere and white metal spheres at roughness 0.1, 0.3, 0.6, 0.9, lit by our IBL file through
     createIblFromKtx1, against the brute-force reference (see the module docstring) in the same loader and shader."""
     p, browser = page
-    folder, envs = files
+    _, envs = files
     url = f"{browser.server.url}/files/{probe}"
     gain = exposures(p, f"{url}-ref{SIZE}_ibl.ktx", float((envs[probe].data @ LUMINANCE).max()))
     reference = spheres(p, f"{url}-ref{SIZE}_ibl.ktx", gain)
@@ -204,7 +224,7 @@ def test_filament_shows_our_skybox_along_six_axes_as_the_panorama(page, files, p
     the panorama itself: block means correlate at 0.95 or more and keep the brightness within 5 % (each view
     exposed for its own 75th percentile, what clips clipped in the prediction too); the x-mirrored bake does not."""
     p, browser = page
-    folder, envs = files
+    _, envs = files
     # the panorama at about the skybox's texel size (256×128): fine detail is not what is compared
     panorama = envs[probe].to(LATLONG, SKYBOX)
     pinholes = [pinhole_luminance(panorama, view) for view in VIEWS]

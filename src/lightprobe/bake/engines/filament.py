@@ -32,16 +32,19 @@ light as Filament's SUN; Filament takes one), the specular chain is the ambient 
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 
 from ...exports.ktx1 import ktx1_bytes
-from ...glossy.prefilter import PrefilteredCube
 from ...exports.lights import ambient_sh, engine_lights, export_filament_lights, perpendicular_irradiance
+from ...exports.packedfloat import UF10_MAX
 from ...exports.sh import export_filament, filament_coefficients
+from ...glossy.prefilter import PrefilteredCube
 from ...maps.frames import FILAMENT
 from ...maps.layouts import CUBE
 from ...maps.resampling.resampler import resample
+from ...util.errors import LightprobeWarning
 from ..accuracy import chain_accuracy, sh_accuracy
 from ..folder import EngineFolder
 from ..source import BakeSource
@@ -113,6 +116,29 @@ def filament_alphas(levels: int) -> list[float]:
     return [float(r * r) for r in perceptual_roughness(levels)]
 
 
+def warn_if_clipped(levels, what: str) -> None:
+    """Warn when texels pass R11F_G11F_B10F's largest value (65024; blue 64512), which the encoding clamps to.
+
+    Parameters
+    ----------
+    levels : sequence of numpy.ndarray
+        The cube's levels, radiance.
+    what : str
+        The file, for the message.
+
+    Warns
+    -----
+    LightprobeWarning
+        Some texel of level 0 is above 64512 in a channel: the share of level 0's power above it.
+    """
+    level = np.asarray(levels[0], dtype=np.float64)
+    over = np.maximum(level - UF10_MAX, 0.0).sum()
+    if over > 0:
+        warnings.warn(LightprobeWarning(
+            f"{what}: R11F_G11F_B10F holds radiance up to {UF10_MAX:g}; {100 * over / level.sum():.2g} % of level "
+            "0's power is above it and clamped (--intensity scales the probe down)"), stacklevel=3)
+
+
 def _diffuse_sh(source: BakeSource):
     """The radiance SH the diffuse term holds: the probe's, or with lights the remainder plus every light but the
     brightest (which becomes the SUN), as export_filament_lights folds them."""
@@ -148,6 +174,7 @@ def bake(source: BakeSource, folder: EngineFolder) -> dict:
     # the prefilter makes the whole chain down to 1²; the levels past cmgen's last repeat its α = 1 and are dropped
     full = source.chain(options.size, tuple(alphas + [alphas[-1]] * (options.full_chain - n)), FRAME, env=env)
     chain = PrefilteredCube(full.levels[:n], full.alphas[:n], full.frame)
+    warn_if_clipped(chain.levels, IBL)
     sh = _diffuse_sh(source)
     coefficients = filament_coefficients(sh, FRAME)
     folder.add_bytes(IBL, ktx1_bytes(list(chain.levels), FORMAT, sh=coefficients), "specular+diffuse",
@@ -157,6 +184,7 @@ def bake(source: BakeSource, folder: EngineFolder) -> dict:
                      roughness_mapping="cmgen's lodToPerceptualRoughness: mip i of n holds r = 1 − √(1 − i/(n − 1)) "
                                        "(α = r²); Filament reads r at lod (n − 1)·r(2 − r)")
     sky = resample(source.env, CUBE, options.skybox_size, rotation=FRAME.to_frame)
+    warn_if_clipped([sky.data], SKYBOX)
     folder.add_bytes(SKYBOX, ktx1_bytes([sky.data], FORMAT), "skybox", "radiance", "KTX1 R11F_G11F_B10F",
                      layout="cube", size=options.skybox_size, mips=1)
     folder.add_text("sh.txt", export_filament(sh, FRAME), "diffuse",
