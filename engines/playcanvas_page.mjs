@@ -44,12 +44,15 @@ async function baked(folderUrl) {
   return { atlas: atlas.resource, skybox: sky.resources[0] };
 }
 
-// PlayCanvas's own path from a panorama file: what its examples do at load time
+// PlayCanvas's own path from a panorama file: what its examples do at load time. Its lighting source cube is a
+// quarter of the atlas wide (as wide as the atlas's mirror image; 128 by default for the default 512 atlas); no
+// atlas when atlasSize is 0 (the skybox views need none)
 async function own(panoramaUrl, atlasSize, skyboxSize) {
   const source = (await load(new pc.Asset("panorama", "texture", { url: panoramaUrl },
     { mipmaps: false }))).resource;
   const skybox = pc.EnvLighting.generateSkyboxCubemap(source, skyboxSize);
-  const lighting = pc.EnvLighting.generateLightingSource(source);
+  if (!atlasSize) return { atlas: null, skybox };
+  const lighting = pc.EnvLighting.generateLightingSource(source, { size: atlasSize / 4 });
   const atlas = pc.EnvLighting.generateAtlas(lighting, { size: atlasSize });
   lighting.destroy();
   return { atlas, skybox };
@@ -88,8 +91,8 @@ function look(eye, target, up) {
 
 window.lightprobe = {
   // one image per view {roughness, exposure} (roughness null: the diffuse sphere), the camera at 4·eye looking at
-  // the sphere. One environment per page: the test opens a fresh page for each (a second EnvLighting in the same
-  // page came out wrong: see tests/test_bake_playcanvas.py)
+  // the sphere. One environment per page: the test opens a fresh page for each (a second environment in the same
+  // application rendered the metals wrong: see run() in tests/test_bake_playcanvas.py)
   async spheres(source, args, eye, views) {
     const env = await environment(source, args);
     useEnvironment(env, 1);

@@ -59,8 +59,9 @@ def baked(tmp_path_factory):
     files = {"interior": shared("polyhaven_1k/st_fagans_interior_1k.hdr"),
              "venice": shared("polyhaven_1k/venice_sunset_1k.hdr"),
              "spot": write_image(folder / "spot-source.hdr", spot_map())}
-    options = BakeOptions(("playcanvas",), size=SIZE, skybox_size=SKYBOX)
     for name, path in files.items():
+        # venice is only looked at as a skybox: its atlas at the smallest size
+        options = BakeOptions(("playcanvas",), size=32 if name == "venice" else SIZE, skybox_size=SKYBOX)
         shutil.copyfile(path, folder / f"{name}.hdr")
         env = read_envmap(path)
         with warnings.catch_warnings():  # the interior's lamps exceed RGBP's 64 in the mirror level: PlayCanvas's too
@@ -83,8 +84,9 @@ def browser(baked):
 
 
 def run(browser, script: str, args: list):
-    """``script`` on a fresh page: one environment per page, because a second EnvLighting.generateAtlas in the same
-    PlayCanvas application rendered its reflections upside down and darker (measured: 70-130 % off its first)."""
+    """``script`` on a fresh page: one environment per page, because a second environment in the same PlayCanvas
+    application (a second EnvLighting atlas, or the baked files after one) rendered the metal spheres wrong — to
+    the eye upside down and darker, 70-130 % off the same environment on a fresh page."""
     page = browser.page("playcanvas.html")
     try:
         return page.evaluate(script, args)
@@ -108,8 +110,8 @@ def differences(images, references) -> list[float]:
 @pytest.mark.parametrize("probe", ["interior", "spot"])
 def test_playcanvas_spheres_from_our_atlas_as_from_its_own(browser, baked, probe):
     """The diffuse sphere and white metal spheres under PlayCanvas's StandardMaterial, lit by our envAtlas.png and
-    skybox against PlayCanvas's own EnvLighting of the panorama with a 256² atlas (our atlas's size); PlayCanvas's
-    own result with a 512² atlas gives its spread."""
+    skybox against PlayCanvas's own EnvLighting of the panorama with a 256² atlas (our atlas's size) from a 64²
+    lighting cube; PlayCanvas's own result with a 128² atlas from a 32² cube gives its spread."""
     from lightprobe.glossy.prefilter import prefilter_cube
 
     url = f"{browser.server.url}/files/{probe}"
@@ -128,10 +130,16 @@ def test_playcanvas_spheres_from_our_atlas_as_from_its_own(browser, baked, probe
                                           [source, args, eye, views])]
 
     own = spheres("own", [url + ".hdr", 4 * SIZE, SKYBOX])
-    spread = differences(spheres("own", [url + ".hdr", 8 * SIZE, SKYBOX]), own)
+    # PlayCanvas's own result moves with its atlas size: that spread, per roughness, is the floor of what agreement
+    # can mean (a 128² atlas rather than 512², which takes SwiftShader four times as long as the 256²)
+    spread = differences(spheres("own", [url + ".hdr", 2 * SIZE, SKYBOX]), own)
     ours = differences(spheres("baked", [f"{url}-bake/playcanvas"]), own)
     RESULTS[("spheres", probe)] = (ours, spread)
     assert not browser.errors, browser.errors
+    # Measured (when this test was written), ours against PlayCanvas's own 256² atlas, with its own 256² → 128²
+    # spread: interior 1.4-2.6 % (spread 0.6-8.4 %), spot 0.5-7.2 % (spread 0.9-14.8 %), the diffuse sphere 1.6 % and
+    # 4.7 % (ours sums every pixel of a 128×64 reduction; PlayCanvas draws 2048 Lambert samples). The frame's
+    # mistake, a skybox mirrored in z, is what the skybox test catches.
     for roughness, mine, theirs in zip(ROUGHNESSES, ours, spread):
         assert mine < max(0.1, 2 * theirs), (roughness, ours, spread)
 
@@ -151,7 +159,7 @@ def test_playcanvas_shows_our_skybox_where_it_shows_its_own_panorama(browser, ba
                      [source, args, VIEWS, exposure])
         return [luminance(i).reshape(8, CANVAS // 8, 8, CANVAS // 8).mean(axis=(1, 3)) for i in images]
 
-    own = skyboxes("own", [url + ".hdr", 4 * SIZE, SKYBOX])
+    own = skyboxes("own", [url + ".hdr", 0, SKYBOX])
 
     def compare(images):
         return [float(np.abs(i - o).mean() / o.mean()) for i, o in zip(images, own)]
@@ -172,7 +180,7 @@ def test_print_the_playcanvas_table():
         if kind == "spheres":
             for r, mine, theirs in zip(ROUGHNESSES, a, b):
                 print(f"PlayCanvas {probe:9s} {'diffuse' if r is None else f'r={r}':8s} ours {100 * mine:5.1f} %  "
-                      f"own 256→512 spread {100 * theirs:5.1f} %")
+                      f"own 256→128 spread {100 * theirs:5.1f} %")
         else:
             print(f"PlayCanvas {probe:9s} skybox ours {', '.join(f'{100 * v:.1f}' for v in a)} %; "
                   f"z-mirrored {', '.join(f'{100 * v:.1f}' for v in b)} %")

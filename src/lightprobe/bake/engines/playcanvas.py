@@ -40,7 +40,7 @@ from ...maps import EnvMap
 from ...maps.frames import WORLD, Frame
 from ...maps.layouts import CUBE, LATLONG
 from ...util.errors import LightprobeWarning
-from ..accuracy import chain_accuracy, sh_accuracy
+from ..accuracy import chain_accuracy
 from ..folder import EngineFolder
 from ..source import BakeSource
 
@@ -199,6 +199,40 @@ def build_atlas(env: EnvMap, chain, side: int) -> np.ndarray:
     return atlas
 
 
+def ambient_accuracy(env: EnvMap, atlas: np.ndarray, side: int) -> dict:
+    """The ambient rect as PlayCanvas decodes it (after RGBP) against brute-force E/π over the probe.
+
+    Parameters
+    ----------
+    env : EnvMap
+        The radiance the atlas was made from (world frame).
+    atlas : numpy.ndarray
+        (side, side, 3) linear atlas texels, before encoding.
+    side : int
+        The atlas side.
+
+    Returns
+    -------
+    dict
+        ``median``/``worst`` relative error on luminance over the rect's texels inside its seams (at most 64 of
+        them, fixed seed), ``texels`` and ``reference``.
+    """
+    from ...sh.irradiance import brute_irradiance
+    from ..accuracy import REFERENCE_ROWS, SEED, _relative
+
+    w, h, seam = side // 8, side // 16, side / 512.0
+    x0, y0 = side // 4, 3 * side // 4
+    inner = int(math.ceil(seam))
+    rows, cols = np.meshgrid(np.arange(inner, h - inner), np.arange(inner, w - inner), indexing="ij")
+    pick = np.random.default_rng(SEED).permutation(rows.size)[:64]
+    rows, cols = rows.reshape(-1)[pick], cols.reshape(-1)[pick]
+    got = rgbp_decode(rgbp_encode(atlas[y0 + rows, x0 + cols]))
+    normals = rect_directions(w, h, seam)[rows, cols]
+    reference = brute_irradiance(env.to(LATLONG, REFERENCE_ROWS), normals) / np.pi
+    return {**_relative(got, reference), "texels": int(len(pick)),
+            "reference": f"Σ L (n·ω)⁺ Δω / π over a {2 * REFERENCE_ROWS}×{REFERENCE_ROWS} lat-long of the probe"}
+
+
 def bake(source: BakeSource, folder: EngineFolder) -> dict:
     """Write ``envAtlas.png``, the skybox faces ``skybox_{px,nx,py,ny,pz,nz}.png`` and, with lights, ``lights.json``.
 
@@ -241,10 +275,8 @@ def bake(source: BakeSource, folder: EngineFolder) -> dict:
         folder.add_bytes(f"skybox_{name}.png", png_bytes(rgbp_encode(face)), "skybox", "radiance",
                          "RGBP PNG (PlayCanvas TEXTURETYPE_RGBP)", layout="cube face", size=options.skybox_size,
                          frame=PLAYCANVAS_CUBE.name)
-    sh = source.sh() if not options.lights else None
-    extra = {"accuracy": {"specular": chain_accuracy(env, chain)}}
-    if sh is not None:
-        extra["accuracy"]["sh"] = sh_accuracy(env, sh)
+    # PlayCanvas lights diffuse surfaces from the atlas's ambient rect, not from SH: that rect is what is measured
+    extra = {"accuracy": {"specular": chain_accuracy(env, chain), "ambient": ambient_accuracy(env, atlas, side)}}
     if options.lights:
         import json
 
