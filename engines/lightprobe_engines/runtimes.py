@@ -34,7 +34,7 @@ def launch_chromium(playwright):
     """Debian's Chromium, headless, through a started Playwright (never a browser Playwright downloads)."""
     return playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
-PACKAGES = ("three", "@babylonjs/core", "@babylonjs/loaders", "filament", "esbuild", "ktx-parse")  # pinned in engines/package.json
+PACKAGES = ("three", "@babylonjs/core", "@babylonjs/loaders", "filament", "esbuild", "ktx-parse", "playcanvas")  # pinned in engines/package.json
 BABYLON_PAGE = "babylon_page.mjs"  # babylon.html's script, served bundled from engines/dist (see babylon_bundle)
 
 
