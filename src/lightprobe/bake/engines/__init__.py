@@ -13,7 +13,7 @@ import importlib
 from ...util.names import BAKE_ENGINES
 
 # The encodings each engine offers where it gives a choice, default first (an engine absent has none to choose).
-ENCODINGS: dict[str, tuple[str, ...]] = {}
+ENCODINGS: dict[str, tuple[str, ...]] = {"custom": ("rgba16f", "rgb9e5", "b10g11r11", "rgba32f")}
 
 
 def engine_module(name: str):
