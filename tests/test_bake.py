@@ -233,3 +233,77 @@ def test_the_manifest_reader_refuses_paths_that_leave_the_folder(tmp_path, path)
     manifest["files"][0]["path"] = path
     with pytest.raises(InputError, match="leaves the folder"):
         read_bake_manifest(json.dumps(manifest))
+
+
+# ---- custom renderers -----------------------------------------------------------------------------------------------
+def test_custom_white_furnace_every_texture_holds_the_exact_value(tmp_path):
+    """A uniform sky of radiance 1: every specular level is 1, the irradiance cube π, the skybox 1, the SH's L00
+    2√π — in every encoding (RGB9E5 and B10G11R11 hold 1 and π to their mantissas; float32 the irradiance sum
+    over the 256×128 reduction, within 1e-4 of π)."""
+    from lightprobe.exports.ktx2 import read_ktx2
+
+    ones = EnvMap(np.ones(LATLONG.grid_shape(16) + (3,), np.float32), LATLONG)
+    for encoding, tolerance in (("rgba16f", 2e-3), ("rgb9e5", 4e-3), ("b10g11r11", 2e-2), ("rgba32f", 2e-4)):
+        out = tmp_path / encoding
+        folder = bake(ones, out, BakeOptions(("custom",), **SMALL, encodings={"custom": encoding}))["custom"]
+        specular = read_ktx2(folder / "specular.ktx2")
+        assert specular.face_count == 6 and specular.level_count == 5 and specular.width == 16
+        for level in specular.levels:
+            assert np.allclose(level[..., :3], 1.0, rtol=tolerance), (encoding, level.min(), level.max())
+        assert np.allclose(read_ktx2(folder / "irradiance.ktx2").levels[0][..., :3], np.pi, rtol=tolerance)
+        assert np.allclose(read_ktx2(folder / "skybox.ktx2").levels[0][..., :3], 1.0, rtol=tolerance)
+        sh = json.loads((folder / "sh.json").read_text())
+        assert sh["coefficients"][0][0] == pytest.approx(2 * math.sqrt(math.pi), rel=1e-4)
+
+
+def test_custom_levels_sit_at_roughness_i_over_levels_minus_one(tmp_path):
+    """--mips 3 of a 16 cube: three levels at r = 0, ½, 1 — level 1 equal to prefiltering at α = ¼, the mirror
+    level the probe's cube itself."""
+    from lightprobe.exports.ktx2 import read_ktx2
+    from lightprobe.glossy.prefilter import prefilter_cube
+
+    env = sunny_map(power=2.0)
+    folder = bake(env, tmp_path / "b", BakeOptions(("custom",), **SMALL, mips=3,
+                                                  encodings={"custom": "rgba32f"}))["custom"]
+    manifest = json.loads((folder / "manifest.json").read_text())
+    entry = next(f for f in manifest["files"] if f["path"] == "specular.ktx2")
+    assert entry["roughness"] == [0.0, 0.5, 1.0] and entry["mips"] == 3
+    levels = read_ktx2(folder / "specular.ktx2").levels
+    assert len(levels) == 3
+    expected = prefilter_cube(env, 16, [0.0, 0.25, 1.0, 1.0, 1.0])
+    for got, want in zip(levels, expected.levels):
+        assert np.allclose(got[..., :3], want, rtol=1e-5, atol=1e-6)
+
+
+def test_custom_dfg_table_is_the_same_in_its_three_files(tmp_path):
+    from lightprobe.exports.ktx2 import read_ktx2
+    from lightprobe.maps.images import read_image
+
+    folder = bake(sunny_map(), tmp_path / "b", BakeOptions(("custom",), **SMALL))["custom"]
+    exr = read_image(folder / "dfg.exr")
+    # DFG1, DFG2 are albedos in [0, 1]; the sheen albedo with Neubelt's visibility passes 1 at grazing, smooth texels
+    assert exr.shape == (128, 128, 3) and 0 <= exr.min() and exr[..., :2].max() <= 1.0
+    assert np.allclose(read_ktx2(folder / "dfg.ktx2").levels[0][0, ..., :3], exr, rtol=1e-3, atol=1e-6)
+    import OpenImageIO as oiio  # the PNG's 16-bit code values as stored (read_image would decode them as sRGB)
+
+    png = oiio.ImageBuf(str(folder / "dfg.png")).get_pixels(oiio.FLOAT)
+    assert np.allclose(png, np.clip(exr, 0, 1), atol=1 / 65535 + 1e-6)
+    assert np.all(exr[..., 1] >= exr[..., 0])  # DFG2 = A + B ≥ DFG1 = B
+
+
+def test_ktx_parse_reads_the_custom_cubes_as_written(tmp_path):
+    """npm ktx-parse (the reference reader) finds the cube, its levels and the same bytes."""
+    from lightprobe.exports.ktx2 import read_ktx2
+    from lightprobe_engines.runtimes import ktx_parse, missing_engines
+
+    if any("node" in m for m in missing_engines()):
+        pytest.fail("ktx-parse needs node and engines/node_modules: run 'bash setup.sh --test'", pytrace=False)
+    folder = bake(sunny_map(), tmp_path / "b", BakeOptions(("custom",), **SMALL))["custom"]
+    files = [folder / name for name in ("specular.ktx2", "irradiance.ktx2", "skybox.ktx2", "dfg.ktx2")]
+    import base64
+
+    for path, theirs in zip(files, ktx_parse(files)):
+        ours = read_ktx2(path)
+        assert (theirs["faceCount"], theirs["levelCount"], theirs["pixelWidth"]) == (
+            ours.face_count, ours.level_count, ours.width)
+        assert [base64.b64decode(level["base64"]) for level in theirs["levels"]] == ours.level_bytes

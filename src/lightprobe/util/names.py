@@ -15,4 +15,4 @@ RENDER_METHODS = ("sh", "brute", "hybrid", "lights", "mediancut", "varmin", "dir
 LIGHT_EXPORT_TARGETS = ("threejs", "filament", "unity", "gltf", "babylon")
 LIGHT_METHODS = ("arbree2005", "mediancut", "varmin")
 # Engines 'lightprobe bake --for' writes a folder for (lightprobe.bake.engines has one module each).
-BAKE_ENGINES = ("babylon", "gltf", "threejs", "filament", "playcanvas", "unity", "godot")
+BAKE_ENGINES = ("babylon", "gltf", "threejs", "filament", "playcanvas", "unity", "godot", "custom")
