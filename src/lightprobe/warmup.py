@@ -9,7 +9,7 @@ normals, the scenes' arrays — so a kernel met later with other types still com
 What runs: every layout conversion between any two layouts, direct, and through cached weights from a lat-long; SH projection of the orders
 the commands use; brute-force and hybrid irradiance; the area-light decomposition and its baselines; a tiny
 scene rendered by every method (shadow rays, ambient occlusion, glossy gold and plastic); radiance maps, RS-IBR
-synthesis and the split sum's prefiltered cube.
+synthesis and the split sum's prefiltered cube; a turned map's conversions; the DFG tables the bakes write.
 """
 
 from __future__ import annotations
@@ -42,6 +42,9 @@ def _maps(env) -> None:
         for target in LAYOUTS:
             mapped.to(target, 8)
     Resampler(LATLONG, env.grid, "cube", 8)(env)
+    turned = env.rotated((40.0, -25.0, 10.0))  # a rotation is its own specialisation of the conversion kernels
+    for target in ("latlong", "cube", "angular"):
+        turned.to(target, 8)
     for l_max in (2, 6, 8, 12, 16):
         project(env, l_max)
         project(env, l_max, compiled=True)
@@ -103,12 +106,23 @@ def _radiance(env) -> None:
         radiance_map(lighting, brdf, view, 8)
 
 
+def _bake(env) -> None:
+    from .glossy.dfg import multiscatter_lut, sheen_lut, split_sum_lut
+
+    multiscatter_lut(4, sheen=True, samples=16)
+    split_sum_lut(4, samples=16)
+    split_sum_lut(4, visibility="separable", samples=16)
+    for visibility in ("neubelt", "charlie"):
+        sheen_lut(4, visibility, samples=16)
+
+
 def compile_kernels(report=None) -> float:
     """Run every compiled kernel the commands use once (compiling it, or loading it from numba's cache); returns
     the seconds it took. ``report(step)``, if given, is told each step's name before it runs."""
     t0 = time.perf_counter()
     env = _probe()
-    for name, step in (("maps", _maps), ("lights", _lights), ("renders", _renders), ("radiance", _radiance)):
+    for name, step in (("maps", _maps), ("lights", _lights), ("renders", _renders), ("radiance", _radiance),
+                       ("bake", _bake)):
         if report:
             report(name)
         step(env)
