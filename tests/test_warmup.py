@@ -13,5 +13,5 @@ def test_the_warm_up_runs_every_step_and_says_so():
     done = subprocess.run([sys.executable, "-m", "lightprobe.warmup"], capture_output=True, text=True, timeout=3600)
     assert done.returncode == 0, done.stderr
     steps = [line for line in done.stderr.splitlines() if "compiling kernels (" in line]
-    assert [s.split("(")[1].rstrip(")") for s in steps] == ["maps", "lights", "renders", "radiance"]
+    assert [s.split("(")[1].rstrip(")") for s in steps] == ["maps", "lights", "renders", "radiance", "bake"]
     assert "kernels compiled (or loaded from numba's cache) in" in done.stderr
