@@ -20,8 +20,8 @@ def register(sub) -> None:
     p.add_argument("dst", type=Path, help="output: .exr, .hdr, .pfm, or .png/.jpg (tone-mapped)")
     p.add_argument("--to", "-t", required=True, choices=layout_names(), help="target layout (cube: a 6N×N strip)")
     add_option(p, "--size", type=Number(int, 1, 65536),
-               help="height (latlong, angular, sphere, octahedral, octahedral-ea) or face edge (cube, cross, "
-                    "hcross); default keeps the angular resolution")
+               help="height (latlong, angular, sphere) or face edge (cube, cross, hcross); default keeps the "
+                    "angular resolution")
     add_option(p, "--rotate", metavar="Y,P,R", type=Triple(-36000, 36000),
                help="turn the environment by yaw,pitch,roll degrees (R = Ry·Rx·Rz, +Y up)")
     p.add_argument("--layout", "-l", choices=layout_names(), help="layout of the input (default: from aspect ratio)")

@@ -10,10 +10,8 @@ Conventions shared by every layout:
 * Each layout is a pure forward/inverse pair — :meth:`Layout.uv_to_dir` and :meth:`Layout.dir_to_uv` — plus the
   solid-angle density ``dω / (du dv)`` and exact per-pixel solid angles summing to 4π.
 
-``size`` (used by ``lightprobe convert --size``) is the image height for ``latlong``, ``angular``, ``sphere``,
-``octahedral`` and ``octahedral-ea`` and the face edge N for ``cube``, ``cross`` (3N × 4N) and ``hcross`` (4N × 3N).
-The two octahedral layouts (:mod:`lightprobe.maps.octahedral_layouts`) are square like the discs, so a square image
-is never taken for one: they are named explicitly.
+``size`` (used by ``lightprobe convert --size``) is the image height for ``latlong``, ``angular`` and ``sphere``
+and the face edge N for ``cube``, ``cross`` (3N × 4N) and ``hcross`` (4N × 3N).
 """
 
 from __future__ import annotations
@@ -26,11 +24,10 @@ from ..util.errors import LayoutError
 from .cube_layouts import CUBE, CUBE_FACE_ORDER, CUBE_FACES, HCROSS_TILES, VCROSS_TILES, Cross, Cube
 from .disc_layouts import Angular, Sphere
 from .layout_base import PAD, Grid, Layout
-from .octahedral_layouts import OCTAHEDRAL, OCTAHEDRAL_EA, Octahedral, OctahedralEqualArea
 
-__all__ = ["Layout", "LatLong", "Angular", "Sphere", "Cube", "Cross", "Octahedral", "OctahedralEqualArea", "LATLONG",
-           "ANGULAR", "SPHERE", "CUBE", "CROSS", "HCROSS", "OCTAHEDRAL", "OCTAHEDRAL_EA", "LAYOUTS", "layout",
-           "detect_layout", "PAD", "Grid", "CUBE_FACES", "CUBE_FACE_ORDER", "VCROSS_TILES", "HCROSS_TILES"]
+__all__ = ["Layout", "LatLong", "Angular", "Sphere", "Cube", "Cross", "LATLONG", "ANGULAR", "SPHERE",
+           "CUBE", "CROSS", "HCROSS", "LAYOUTS", "layout", "detect_layout", "PAD", "Grid", "CUBE_FACES",
+           "CUBE_FACE_ORDER", "VCROSS_TILES", "HCROSS_TILES"]
 
 
 class LatLong(Layout):
@@ -184,8 +181,7 @@ SPHERE = Sphere()
 CROSS = Cross("cross", VCROSS_TILES, (3, 4))
 HCROSS = Cross("hcross", HCROSS_TILES, (4, 3))
 
-LAYOUTS: dict[str, Layout] = {lay.name: lay for lay in (LATLONG, ANGULAR, SPHERE, CUBE, CROSS, HCROSS, OCTAHEDRAL,
-                                                         OCTAHEDRAL_EA)}
+LAYOUTS: dict[str, Layout] = {lay.name: lay for lay in (LATLONG, ANGULAR, SPHERE, CUBE, CROSS, HCROSS)}
 
 
 def layout(name: str | Layout) -> Layout:
@@ -194,8 +190,7 @@ def layout(name: str | Layout) -> Layout:
     Parameters
     ----------
     name : str or Layout
-        ``latlong``, ``angular``, ``sphere``, ``cube``, ``cross``, ``hcross``, ``octahedral`` or
-        ``octahedral-ea``, or a :class:`Layout`.
+        ``latlong``, ``angular``, ``sphere``, ``cube``, ``cross`` or ``hcross``, or a :class:`Layout`.
 
     Returns
     -------
@@ -218,8 +213,8 @@ def layout(name: str | Layout) -> Layout:
 def detect_layout(width: int, height: int) -> Layout:
     """Guess a flat image's layout from its aspect ratio.
 
-    2:1 latlong, 1:1 angular, 3:4 cross, 4:3 hcross, 6:1 cube strip. A mirror ball and the octahedral maps
-    (also 1:1) must be stated explicitly.
+    2:1 latlong, 1:1 angular, 3:4 cross, 4:3 hcross, 6:1 cube strip. A mirror ball (also 1:1) must be stated
+    explicitly.
 
     Parameters
     ----------

@@ -30,7 +30,7 @@ def section_layouts(rep: Report) -> str:
     base = rep.env.integral()
     figures, rows = [], []
     for lay_name, lay in LAYOUTS.items():
-        size = 128 if lay_name in ("cube", "cross", "hcross") else 256  # a face edge, or the image's height
+        size = 256 if lay_name in ("latlong", "angular", "sphere") else 128
         t0 = time.perf_counter()
         converted = rep.env.to(lay, size)
         seconds = rep.timings[f"convert to {lay_name} {size}"] = time.perf_counter() - t0

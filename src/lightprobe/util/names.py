@@ -5,7 +5,7 @@ Each module that implements a set of names takes its tuple from here and builds 
 ``tests/test_project.py`` checks that every table has exactly these names, in this order.
 """
 
-LAYOUTS = ("latlong", "angular", "sphere", "cube", "cross", "hcross", "octahedral", "octahedral-ea")
+LAYOUTS = ("latlong", "angular", "sphere", "cube", "cross", "hcross")
 FRAMES = ("world", "rh2001", "threejs", "threejs-axes", "filament", "gltf", "unity", "babylon")
 WINDOWS = ("none", "hanning", "lanczos", "auto")
 CURVES = ("srgb", "aces")

@@ -333,12 +333,6 @@ _LINKING = threading.local()
 # direction take lookups closer there (fused.ANGULAR_RIM_SPACING): → angular 3268 0.15 % (0.26 %; 0.12 % at the rim
 # direction).
 LATLONG_FLUX_MAX_PIXELS = 1 << 21
-# pbrt's equal-area octahedral map joins the discs here: its square folds along the axes through its centre (+Y) and
-# its corners (−Y), where the direction's angle from the pole goes as |s| + |t|, kinked along whole pixel edges, so the
-# midpoint rule's end terms there do not cancel: a one-pixel sun in a lat-long's first two rows came out 0.7–2.2 %
-# low (lat-long 64 and 128 rows → octahedral-ea 32–96), every other row within 0.22 %. Godot's plain map, whose poles
-# are the middles of two edges, keeps every row within 0.11 % by its rates alone and is not corrected.
-LATLONG_FLUX_TARGETS = DISCS + ("octahedral-ea",)
 
 
 def _flux_corrects(source_layout: Layout, source_pixels: int, target: Layout) -> bool:
@@ -347,13 +341,12 @@ def _flux_corrects(source_layout: Layout, source_pixels: int, target: Layout) ->
     and into anything when it has fewer rows than the rational pole rows need
     (:data:`lightprobe.maps.resampling.pole_rows.MIN_HEIGHT`: its first rows keep the plain spline, a sun there
     +22–25 %). Into a lat-long or a cube a larger lat-long keeps a sun's energy by its own construction — the polar
-    rows' reductions and rational weights, measured in tests/test_resample.py. Into pbrt's equal-area octahedral map
-    it is corrected as into a disc (:data:`LATLONG_FLUX_TARGETS`)."""
+    rows' reductions and rational weights, measured in tests/test_resample.py."""
     if source_layout.name != "latlong":
         return True
     if math.isqrt(source_pixels // 2) < pole_rows.MIN_HEIGHT:  # a lat-long of H rows has 2H² pixels
         return True
-    return target.name in LATLONG_FLUX_TARGETS and source_pixels <= LATLONG_FLUX_MAX_PIXELS
+    return target.name in DISCS and source_pixels <= LATLONG_FLUX_MAX_PIXELS
 
 
 def _corrected(source_layout: Layout, source_grid: tuple[int, ...], target: Layout, samples: int | None) -> bool:

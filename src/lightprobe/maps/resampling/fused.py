@@ -8,8 +8,7 @@ the target's pixels. The per-layout formulas below are the same as :mod:`lightpr
 written for one direction at a time (``tests/test_resample.py`` checks them against those pairs and the whole kernel
 against the numpy path, to float32 rounding).
 
-Layout codes: 0 latlong, 1 cube (faces +X, −X, +Y, −Y, +Z, −Z, OpenGL), 2 angular, 3 sphere (camera axes ``axes``),
-4 octahedral (Godot's), 5 octahedral-ea (pbrt-v4's equal-area map, in pbrt's frame (z, −x, y) of the world's).
+Layout codes: 0 latlong, 1 cube (faces +X, −X, +Y, −Y, +Z, −Z, OpenGL), 2 angular, 3 sphere (camera axes ``axes``).
 A latlong source is read unpadded (columns wrap; a row past a pole is the row at the other side of it, half a turn
 round); other sources are read from their padded image (:meth:`lightprobe.maps.layouts.Layout.padded`).
 """
@@ -29,9 +28,8 @@ from .pole_rows import FACTORS as POLE_FACTORS, TIER_HEIGHTS as POLE_TIER_HEIGHT
 # which pixel a point falls in) take fastmath=False.
 KERNEL_FASTMATH = {"contract", "arcp", "nsz", "reassoc"}
 
-LATLONG, CUBE, ANGULAR, SPHERE, OCTAHEDRAL, OCTAHEDRAL_EA = 0, 1, 2, 3, 4, 5
-CODES = {"latlong": LATLONG, "cube": CUBE, "angular": ANGULAR, "sphere": SPHERE, "octahedral": OCTAHEDRAL,
-         "octahedral-ea": OCTAHEDRAL_EA}
+LATLONG, CUBE, ANGULAR, SPHERE = 0, 1, 2, 3
+CODES = {"latlong": LATLONG, "cube": CUBE, "angular": ANGULAR, "sphere": SPHERE}
 
 # Cube faces as signed permutations: direction ∝ A·(s, t, 1); rows of A for +X, −X, +Y, −Y, +Z, −Z (layouts.CUBE_FACES)
 FACE_MATRICES = np.array([
@@ -103,60 +101,8 @@ def _rim_clamped(u, v):  # pragma: no cover - compiled
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _glsl_sign(a):  # pragma: no cover - compiled
-    """GLSL's sign: 0 at 0 (Godot's ``oct_to_vec3`` folds with it)."""
-    return 1.0 if a > 0.0 else -1.0 if a < 0.0 else 0.0
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _octahedral_direction(kind, u, v):  # pragma: no cover - compiled
-    """(x, y, z, dω/(du dv)) of a point of an octahedral map (octahedral_layouts' pairs): Godot's plain map, the
-    octahedron's point (not normalised) in world axes; pbrt's equal-area map, a unit vector turned from pbrt's frame
-    (x, y, z)_pbrt = (z, −x, y)_world into the world's."""
-    s, t = 2.0 * u - 1.0, 2.0 * v - 1.0
-    if kind == OCTAHEDRAL:
-        z = 1.0 - abs(s) - abs(t)
-        x, y = s, t
-        if z < 0.0:
-            x, y = (1.0 - abs(t)) * _glsl_sign(s), (1.0 - abs(s)) * _glsl_sign(t)
-        q = math.sqrt(x * x + y * y + z * z)
-        return x, y, z, 4.0 / (q * q * q)
-    signed_distance = 1.0 - (abs(s) + abs(t))
-    r = 1.0 - abs(signed_distance)
-    phi = (1.0 if r == 0.0 else (abs(t) - abs(s)) / r + 1.0) * math.pi / 4.0
-    pz = math.copysign(1.0 - r * r, signed_distance)
-    ring = r * math.sqrt(max(2.0 - r * r, 0.0))
-    px, py = math.copysign(math.cos(phi), s) * ring, math.copysign(math.sin(phi), t) * ring
-    return -py, pz, px, 4.0 * math.pi
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _octahedral_position(kind, x, y, z, h, w):  # pragma: no cover - compiled
-    """(0, column, row) of direction (x, y, z), any length, in an octahedral map (octahedral_layouts' inverses)."""
-    if kind == OCTAHEDRAL:
-        norm = abs(x) + abs(y) + abs(z)
-        nx, ny = x / norm, y / norm
-        s, t = nx, ny
-        if z < 0.0:  # Godot's oct_wrap: a zero component counts as +
-            s = (1.0 - abs(ny)) * (1.0 if nx >= 0.0 else -1.0)
-            t = (1.0 - abs(nx)) * (1.0 if ny >= 0.0 else -1.0)
-        return 0, (s + 1.0) / 2.0 * w - 0.5, (t + 1.0) / 2.0 * h - 0.5
-    px, py, pz = z, -x, y  # pbrt's frame
-    norm = math.sqrt(px * px + py * py + pz * pz)
-    px, py, pz = px / norm, py / norm, pz / norm
-    r = math.hypot(px, py) / math.sqrt(1.0 + abs(pz))  # √(1 − |z|), keeping its digits by the poles
-    b = r * atan2(abs(py), abs(px)) * (2.0 / math.pi)
-    a = r - b
-    if pz < 0.0:
-        a, b = 1.0 - b, 1.0 - a
-    s, t = math.copysign(a, px), math.copysign(b, py)
-    return 0, (s + 1.0) / 2.0 * w - 0.5, (t + 1.0) / 2.0 * h - 0.5
-
-
-@njit(cache=True, inline="always", error_model="numpy")
 def target_direction(kind, axes, face, u, v):  # pragma: no cover - compiled
-    """(x, y, z, dω/(du dv)) at continuous target coordinates; the direction is not normalised for cube faces and
-    Godot's octahedral map."""
+    """(x, y, z, dω/(du dv)) at continuous target coordinates; the direction is not normalised for cube faces."""
     if kind == LATLONG:
         theta, phi = math.pi * v, 2.0 * math.pi * (u - 0.5)
         st = math.sin(theta)
@@ -169,8 +115,6 @@ def target_direction(kind, axes, face, u, v):  # pragma: no cover - compiled
         z = m[2, 0] * s + m[2, 1] * t + m[2, 2]
         q = 1.0 + s * s + t * t
         return x, y, z, 4.0 / (q * math.sqrt(q))
-    if kind == OCTAHEDRAL or kind == OCTAHEDRAL_EA:
-        return _octahedral_direction(kind, u, v)
     inside = math.hypot(2.0 * u - 1.0, 1.0 - 2.0 * v) <= 1.0
     a, b = _rim_clamped(u, v)
     if kind == ANGULAR:
@@ -223,8 +167,6 @@ def source_position(kind, axes, x, y, z, h, w):  # pragma: no cover - compiled
             face = 0
         _, px, py = _on_face_plane(face, x, y, z, h, w)
         return face, px, py
-    if kind == OCTAHEDRAL or kind == OCTAHEDRAL_EA:
-        return _octahedral_position(kind, x, y, z, h, w)
     norm = math.sqrt(x * x + y * y + z * z)
     x, y, z = x / norm, y / norm, z / norm
     if kind == ANGULAR:
@@ -681,7 +623,7 @@ def _source_step(tgt_kind, tgt_axes, face, u0, v0, u1, v1, rotation, src_kind, s
     on its own rim as rounding falls — a mirror ball into a mirror ball gave such points steps of 0 to 30 pixels,
     whose rates then graded their valid neighbours' cells (:func:`_pixel_rates`) differently from kernel to kernel,
     and the cached taps and the direct pass differed by up to 10 % on rim pixels."""
-    if (tgt_kind == ANGULAR or tgt_kind == SPHERE) and not (_on_disc(u0, v0) and _on_disc(u1, v1)):
+    if tgt_kind != LATLONG and tgt_kind != CUBE and not (_on_disc(u0, v0) and _on_disc(u1, v1)):
         return 0.0
     f0, x0, y0, _, _, _ = _source_point(tgt_kind, tgt_axes, face, u0, v0, rotation, src_kind, src_axes, src_h, src_w)
     f1, x1, y1, rx, ry, rz = _source_point(tgt_kind, tgt_axes, face, u1, v1, rotation, src_kind, src_axes, src_h,
@@ -1669,7 +1611,7 @@ def _pixel(src_kind, src, valid, levels, reduced, row_offsets, caps, src_axes, s
     n, wsum = _subsamples(tgt_kind, tgt_axes, np.int64(face), row, col, h, w, rates, rotation, src_kind, src_axes,
                           src_h, src_w, pfs, pxs, pys, pws, np.int64(rim_k_max))
     acc[0], acc[1], acc[2] = 0.0, 0.0, 0.0
-    tiled = src_kind != ANGULAR and src_kind != SPHERE  # sources whose taps are all valid (no renormalisation)
+    tiled = src_kind == LATLONG or src_kind == CUBE  # sources whose taps are all valid (no renormalisation)
     if not (tiled and _same_face(pfs, n)
             and _footprint(src, pfs[0], src_kind != LATLONG, levels, reduced, row_offsets, caps, pxs, pys,
                            pws, n, scratch, tile, acc)):
@@ -1902,7 +1844,7 @@ def _pixel_taps(src_kind, src_shape, valid, index_map, levels, row_offsets, caps
                           src_h, src_w, pfs, pxs, pys, pws, np.int64(k_max if k_max > k else 0))
     scale = 1.0 / wsum
     t = -1
-    if src_kind != ANGULAR and src_kind != SPHERE and _same_face(pfs, n):
+    if (src_kind == LATLONG or src_kind == CUBE) and _same_face(pfs, n):
         t = _tile_taps(src_kind, src_shape, index_map, levels, row_offsets, caps, src_h, src_w, pfs, pxs,
                        pys, pws, n, scale, scratch, tile, idx, wts)
     if t < 0:
