@@ -138,6 +138,21 @@ def test_rotation_moves_the_light_by_r():
     assert angle_deg(centroid_direction(back), centroid_direction(env)) < 0.5
 
 
+def test_a_transposed_rotation_reuses_the_kernels_compiled_for_its_contiguous_twin():
+    """R.T is a Fortran-ordered view; numba compiles per array layout, so handing it on as given compiled every
+    resampling kernel a second time (minutes on a fresh install) for the same arithmetic."""
+    from lightprobe.maps.resampling import fused
+    from lightprobe.util.jit import dispatcher
+
+    r = rotation_from_ypr(40, -25, 10)
+    env = spot_map("latlong", size=16)
+    np.testing.assert_array_equal(env.rotated(r.T).data, env.rotated(np.ascontiguousarray(r.T)).data)
+    kernel = dispatcher(fused.resample_into)
+    assert kernel.signatures, "the turned conversion did not run the compiled kernel"
+    layouts = {arg.layout for sig in kernel.signatures for arg in sig if hasattr(arg, "layout")}
+    assert "F" not in layouts and "A" not in layouts, kernel.signatures
+
+
 def test_yaw_convention():
     """Positive yaw turns the panorama counter-clockwise seen from above: the front (−Z) moves to −X."""
     env = spot_map("latlong", direction=[0, 0, -1])

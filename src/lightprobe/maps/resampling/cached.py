@@ -70,7 +70,9 @@ class Resampler:
         from ..layouts import layout as layout_named
 
         self.layout, self.grid, self.target = layout_named(layout), tuple(grid), layout_named(target)
-        self.rotation, self.samples = rotation, samples
+        # C order, as resample() makes it: a transposed matrix would compile every kernel again for its layout
+        self.rotation = None if rotation is None else np.ascontiguousarray(rotation, dtype=np.float64)
+        self.samples = samples
         self._separable = None  # a lat-long on the source's rows: separable.Separable's matrices, not taps
         target = self.target
         self.layout.check_grid(self.grid)

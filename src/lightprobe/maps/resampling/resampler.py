@@ -216,6 +216,7 @@ def resample(
     BudgetError
         When the target is over the pixel limit or the conversion would exceed the memory budget.
     """
+    rotation = _contiguous(rotation)
     plan = _plan(source, target, size, rotation, samples)
     if plan is None:
         source, grid, k, _ = _prepared(source, target, size, samples, rotation)
@@ -266,6 +267,7 @@ def resample_strips(source: EnvMap, target: Layout, size: int | None = None, *, 
         When the target is over the pixel limit or the conversion would exceed the memory budget, also before any
         strip.
     """
+    rotation = _contiguous(rotation)
     plan = _plan(source, target, size, rotation, samples)
     if plan is None or (isinstance(target, Cross) and not target.rows_are_face_rows()):
         from ..files import to_image
@@ -394,6 +396,13 @@ def _side_rows(plan: _Plan, tiles: list[tuple], n: int) -> dict[int, np.ndarray]
             plan.fill_rows(sides, lo, 0, hi - lo, poles=False)
             out.update({face: sides[face] for face in faces})
     return out
+
+
+def _contiguous(rotation: np.ndarray | None) -> np.ndarray | None:
+    """The rotation as a C-ordered float64 array: the kernels are compiled per array layout, and a transposed matrix
+    (``R.T``, a frame's ``to_frame``) is Fortran-ordered, which would compile every resampling kernel a second time
+    (minutes) for the same arithmetic."""
+    return None if rotation is None else np.ascontiguousarray(rotation, dtype=np.float64)
 
 
 def _prepared(source: EnvMap, target: Layout, size: int | None, samples: int | None, rotation=None):
