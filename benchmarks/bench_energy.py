@@ -148,7 +148,7 @@ def full_size() -> None:
 
 
 ROWS_ALONE = [("latlong", 512, "sphere", 233), ("latlong", 1100, "sphere", 500), ("latlong", 256, "angular", 408),
-              ("latlong", 1024, "angular", 1634)]
+              ("latlong", 1024, "angular", 1634), ("latlong", 2048, "sphere", 1024), ("latlong", 2048, "sphere", 3268)]
 
 
 def rows_alone() -> None:
