@@ -89,7 +89,23 @@ function look(eye, target, up) {
   camera.lookAt(new pc.Vec3(...target), new pc.Vec3(...up));
 }
 
+// The directional lights of a bake's lights.json, made as its USAGE.md makes them (PlayCanvas's frame; a light
+// shines along its entity's −Y; PlayCanvas linearises the colour it is given, and below intensity 1 colour ×
+// intensity, so it is handed the sRGB of the linear colour, times the intensity below 1)
+async function addLights(url) {
+  const found = await (await fetch(url)).json();
+  for (const l of found.directionalLights) {
+    const k = Math.min(l.intensity, 1);
+    const e = new pc.Entity();
+    e.addComponent("light", { type: "directional", color: new pc.Color(...l.colour.map((v) => v * k)).gamma(),
+      intensity: Math.max(l.intensity, 1), castShadows: false });
+    e.lookAt(...l.travel); e.rotateLocal(90, 0, 0);
+    app.root.addChild(e);
+  }
+}
+
 window.lightprobe = {
+  addLights,
   // one image per view {roughness, exposure} (roughness null: the diffuse sphere), the camera at 4·eye looking at
   // the sphere. One environment per page: the test opens a fresh page for each (a second environment in the same
   // application rendered the metals wrong: see run() in tests/test_bake_playcanvas.py)

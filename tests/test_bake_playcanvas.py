@@ -10,6 +10,7 @@ skybox along six axes; a bake mirrored in z must fail that direction check.
 from __future__ import annotations
 
 import base64
+import json
 import shutil
 import warnings
 
@@ -17,8 +18,9 @@ import numpy as np
 import pytest
 
 from conftest import shared
-from lightprobe_engines.runtimes import LUMINANCE, Browser, Server, missing_engines
-from lightprobe.maps import read_envmap
+from lightprobe_engines.probes import X_MIRROR, Y_QUARTER, axis_map
+from lightprobe_engines.runtimes import LUMINANCE, Browser, Server, lit_side, missing_engines
+from lightprobe.maps import EnvMap, read_envmap
 from lightprobe.maps.images import write_image
 from lightprobe.maps.layouts import LATLONG
 from lightprobe.util.errors import LightprobeWarning
@@ -71,6 +73,20 @@ def baked(tmp_path_factory):
         shutil.copytree(folder / f"{name}-bake" / "playcanvas", mirrored)
         for face, face_name in zip(prefilter_cube(env, SKYBOX, [0.0] * 7, WORLD).levels[0], FACES):
             (mirrored / f"skybox_{face_name}.png").write_bytes(png_bytes(rgbp_encode(face)))
+    # the axis probe (lightprobe_engines.probes): our bake, and bakes of it mirrored in x and turned a quarter
+    # about y (the atlas at the smallest size: only the skybox is looked at)
+    write_image(folder / "axes.hdr", axis_map(256))
+    for label, transform in (("axes", None), ("axes-mirrored", X_MIRROR), ("axes-rotated", Y_QUARTER)):
+        bake(EnvMap(axis_map(256, transform), LATLONG), folder / f"{label}-bake",
+             BakeOptions(("playcanvas",), size=16, skybox_size=SKYBOX))
+    # the spot probe with --lights (the spot as a directional light, the remainder in the atlas), and its
+    # lights.json with every light mirrored in x (PlayCanvas's frame): the mistake the lit side shows
+    bake(read_envmap(files["spot"]), folder / "spot-lights", BakeOptions(("playcanvas",), size=SIZE,
+                                                                         skybox_size=SKYBOX, lights=True))
+    found = json.loads((folder / "spot-lights" / "playcanvas" / "lights.json").read_text())
+    for light in found["directionalLights"]:
+        light["travel"][0], light["toward"][0] = -light["travel"][0], -light["toward"][0]
+    (folder / "spot-mirrored-lights.json").write_text(json.dumps(found))
     return folder
 
 
@@ -174,13 +190,85 @@ def test_playcanvas_shows_our_skybox_where_it_shows_its_own_panorama(browser, ba
     assert max(wrong) > 3 * max(ours) and sum(w > 0.1 for w in wrong) >= 4, (ours, wrong)
 
 
+def test_playcanvas_skybox_of_the_axis_probe_fails_every_view_mirrored_or_turned(browser, baked):
+    """The axis probe (a marker of its own brightness off each axis): our skybox faces match PlayCanvas's own
+    generateSkyboxCubemap of the panorama along all six axes; the bakes of the probe mirrored in x and turned a
+    quarter about y differ in every one of the six views."""
+    url = f"{browser.server.url}/files/axes"
+    exposure = 0.3 / float(np.percentile(axis_map(256) @ LUMINANCE, 90))
+
+    def skyboxes(source, args):
+        images = run(browser, "([s, a, v, x]) => window.lightprobe.skyboxes(s, a, v, x)",
+                     [source, args, VIEWS, exposure])
+        return [luminance(i).reshape(8, CANVAS // 8, 8, CANVAS // 8).mean(axis=(1, 3)) for i in images]
+
+    own = skyboxes("own", [url + ".hdr", 0, SKYBOX])
+    ours, mirrored, rotated = ([float(np.abs(i - o).mean() / o.mean()) for i, o in
+                                zip(skyboxes("baked", [f"{url}{v}-bake/playcanvas"]), own)]
+                               for v in ("", "-mirrored", "-rotated"))
+    RESULTS[("skybox", "axes")] = (ours, mirrored)
+    RESULTS[("skybox", "axes, quarter turn")] = (ours, rotated)
+    assert not browser.errors, browser.errors
+    # Measured: ours 0.3-1.3 % per view; x-mirrored 42-71 %, turned 45-77 %
+    assert max(ours) < 0.03, ours
+    assert min(mirrored) > 0.2 and min(rotated) > 0.2, (mirrored, rotated)
+
+
+LIT = (None, 0.6, 0.9)  # the spheres lit by the lights: diffuse (bounded), and two rough metals (printed)
+
+
+def test_playcanvas_lights_and_the_remainders_atlas_light_as_its_own_atlas_of_the_whole_probe(browser, baked):
+    """The spot probe baked with --lights: its lights.json as PlayCanvas directional lights (made as USAGE.md
+    makes them) plus the remainder's envAtlas.png light the diffuse sphere as PlayCanvas's own EnvLighting of the
+    whole panorama does, lit on the same side; the lights mirrored in x light the other side. The rough metals'
+    figures are printed beside."""
+    url = f"{browser.server.url}/files/spot"
+    eye = list(np.asarray([0.3, 0.45, 0.85]) / np.linalg.norm([0.3, 0.45, 0.85]))
+    env = read_envmap(baked / "spot.hdr")
+    exposure = 0.4 / float(env.integral() @ LUMINANCE / (4 * np.pi))
+    views = [{"roughness": r, "exposure": exposure} for r in LIT]
+
+    def spheres(source, args, lights=None):
+        script = ("async ([l, s, a, e, v]) => { if (l) await window.lightprobe.addLights(l); "
+                  "return window.lightprobe.spheres(s, a, e, v); }")
+        return [luminance(i) for i in run(browser, script, [lights, source, args, eye, views])]
+
+    own = spheres("own", [url + ".hdr", 4 * SIZE, SKYBOX])
+    spread = differences(spheres("own", [url + ".hdr", 2 * SIZE, SKYBOX]), own)
+    folder = f"{url}-lights/playcanvas"
+    images = {"ours": spheres("baked", [folder], f"{folder}/lights.json"),
+              "mirrored": spheres("baked", [folder], f"{url}-mirrored-lights.json")}
+    figures = {k: differences(v, own) for k, v in images.items()}
+    moved = {k: float(np.linalg.norm(lit_side(v[0]) - lit_side(own[0]))) for k, v in images.items()}
+    RESULTS[("lights", "spot")] = (figures, spread, moved)
+    assert not browser.errors, browser.errors
+    # Measured: the diffuse sphere 1.9-2.1 % from PlayCanvas's own (its own 256² → 128² spread 1.6 %), its lit
+    # side 0.0 px (of 64) from its own; the lights mirrored in x 59 % off, the lit side 25 px away. (Handed the
+    # linear colour and intensity E⊥/π = 0.43 as they are, PlayCanvas lit it 47 % too dark: it linearises colour ×
+    # intensity below 1, see USAGE.md.) The metals are figures, not bounded: lit by a directional light PlayCanvas
+    # draws its punctual lobe (normalised Blinn-Phong by default, its lightSpecularBlinn chunk; GGX with
+    # enableGGXSpecular), not the prefiltered GGX of its atlas, so they move 15 % and 29 % (Blinn; 29 %, 46 % with
+    # GGX) whoever bakes: a limit of lights in place of the sun's texels for glossy metal, not of the files
+    assert figures["ours"][0] < max(0.04, 2 * spread[0]), (figures, spread)
+    assert moved["ours"] < 1.0 and moved["mirrored"] > 10, moved
+    assert figures["mirrored"][0] > 0.3, figures
+
+
 def test_print_the_playcanvas_table():
     """The figures of this module (pytest -s shows them; the closing note quotes them)."""
-    for (kind, probe), (a, b) in sorted(RESULTS.items()):
-        if kind == "spheres":
+    for (kind, probe), (a, b, *rest) in sorted(RESULTS.items()):
+        if kind == "lights":
+            for i, r in enumerate(LIT):
+                print(f"PlayCanvas {probe} --lights {'diffuse' if r is None else f'r={r}':8s} ours "
+                      f"{100 * a['ours'][i]:5.1f} %  own 256→128 spread {100 * b[i]:5.1f} %  mirrored lights "
+                      f"{100 * a['mirrored'][i]:5.1f} %")
+            print(f"PlayCanvas {probe} --lights lit side moved: ours {rest[0]['ours']:.1f} px, mirrored "
+                  f"{rest[0]['mirrored']:.1f} px")
+        elif kind == "spheres":
             for r, mine, theirs in zip(ROUGHNESSES, a, b):
                 print(f"PlayCanvas {probe:9s} {'diffuse' if r is None else f'r={r}':8s} ours {100 * mine:5.1f} %  "
                       f"own 256→128 spread {100 * theirs:5.1f} %")
         else:
+            wrong = ("x-mirrored" if probe == "axes" else "turned" if probe.startswith("axes") else "z-mirrored")
             print(f"PlayCanvas {probe:9s} skybox ours {', '.join(f'{100 * v:.1f}' for v in a)} %; "
-                  f"z-mirrored {', '.join(f'{100 * v:.1f}' for v in b)} %")
+                  f"{wrong} {', '.join(f'{100 * v:.1f}' for v in b)} %")

@@ -213,3 +213,11 @@ def babylon_irradiance_over_pi(pre_scaled: np.ndarray, n) -> np.ndarray:
 def relative(a: np.ndarray, b: np.ndarray) -> float:
     """|a − b| / b on luminance."""
     return float(abs((a - b) @ LUMINANCE) / abs(b @ LUMINANCE))
+
+
+def lit_side(image: np.ndarray) -> np.ndarray:
+    """Where a sphere in ``image`` (luminance, 0 off the sphere) is lit: the centroid (x, y, pixels) of its
+    brightest fifth."""
+    lit = image > np.percentile(image[image > 0], 80)
+    rows, cols = np.nonzero(lit)
+    return np.array([cols.mean(), rows.mean()])

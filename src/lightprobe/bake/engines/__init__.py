@@ -14,7 +14,8 @@ from ...util.names import BAKE_ENGINES
 
 # The encodings each engine offers where it gives a choice, default first (an engine absent has none to choose).
 ENCODINGS: dict[str, tuple[str, ...]] = {"threejs": ("rgba16f", "rgba32f"),
-                                         "custom": ("rgba16f", "rgb9e5", "b10g11r11", "rgba32f")}
+                                         "custom": ("rgba16f", "rgb9e5", "b10g11r11", "rgba32f"),
+                                         "gltf": ("rgbd", "ktx2")}
 
 
 def engine_module(name: str):

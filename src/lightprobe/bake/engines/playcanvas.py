@@ -304,9 +304,13 @@ def usage(folder: EngineFolder) -> str:
     names = {f["path"] for f in folder.files}
     lights = ("\n// the lights found in the probe (lights.json: PlayCanvas's frame; intensity = E⊥/π)\n"
               "const found = await (await fetch('lights.json')).json();\n"
+              "// PlayCanvas takes a light's colour as sRGB, and below intensity 1 linearises colour × intensity\n"
+              "// (Light._updateLinearColor): hand it the sRGB of the linear colour, × the intensity below 1\n"
               "for (const l of found.directionalLights) {\n"
+              "  const k = Math.min(l.intensity, 1);\n"
+              "  const color = new pc.Color(...l.colour.map((v) => v * k)).gamma();\n"
               "  const e = new pc.Entity(); e.addComponent('light', { type: 'directional',\n"
-              "    color: new pc.Color(...l.colour), intensity: l.intensity });\n"
+              "    color, intensity: Math.max(l.intensity, 1) });\n"
               "  e.lookAt(...l.travel); e.rotateLocal(90, 0, 0);  // it shines along its −Y\n"
               "  app.root.addChild(e);\n}\n"
               if "lights.json" in names else "")
