@@ -10,12 +10,11 @@ specular chain is full (mip i at α = 2^i/size: the loader's lodGenerationScale 
 from __future__ import annotations
 
 from ...exports.containers import glb, gltf_alphas, gltf_ibl_document
-from ...exports.lights import add_gltf_lights, ambient_sh, engine_lights
+from ...exports.lights import GLTF_NODES, add_gltf_lights
 from ...maps.frames import BABYLON
-from ..accuracy import chain_accuracy, sh_accuracy
 from ..folder import EngineFolder
 from ..source import BakeSource
-from .common import perceptual_roughness, require_full_chain, skybox_panorama
+from .common import manifest_extra, perceptual_roughness, require_full_chain, skybox_panorama
 
 FRAME = BABYLON
 ENCODINGS = ()
@@ -39,16 +38,11 @@ def bake(source: BakeSource, folder: EngineFolder) -> dict:
     options = source.options
     require_full_chain(options, "EXT_lights_image_based")
     alphas = gltf_alphas(options.size)
-    env = source.decomposition().ambient if options.lights else source.env
-    sh = ambient_sh(source.lights(), []) if options.lights else source.sh()
+    env, sh = source.diffuse()
     chain = source.chain(options.size, tuple(alphas), FRAME, env=env)
     document, images = gltf_ibl_document(chain, sh)
-    extra = {"accuracy": {"sh": sh_accuracy(env, sh), "specular": chain_accuracy(env, chain)}}
     if options.lights:
-        from ...exports.lights import GLTF_NODES
-
         add_gltf_lights(document, source.lights())
-        extra["lights"] = engine_lights(source.lights(), GLTF_NODES)
     folder.add_bytes("environment.glb", glb(document, images), "specular+diffuse" + ("+lights" if options.lights
                                                                                       else ""),
                      "radiance (specular mips); irradiance E_lm (irradianceCoefficients); lights: E⊥ in lux",
@@ -56,7 +50,8 @@ def bake(source: BakeSource, folder: EngineFolder) -> dict:
                      mips=len(alphas), roughness=[round(float(r), 6) for r in perceptual_roughness(alphas)],
                      roughness_mapping="mip i holds α_i = 2^i/size (α = roughness²), mip 0 the mirror")
     skybox_panorama(source, folder, "skybox.hdr")
-    return extra
+    # the lights as the file's nodes state them
+    return manifest_extra(source, chain, GLTF_NODES)
 
 
 def usage(folder: EngineFolder) -> str:
