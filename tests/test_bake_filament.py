@@ -151,8 +151,9 @@ def test_filament_parses_our_files_as_cmgen_lays_them_out(files):
 
 
 def luminance(canvas: str) -> np.ndarray:
-    """Linear luminance of a canvas the page returned (post-processing is off: the bytes are linear)."""
-    return canvas_luminance(canvas, CANVAS, srgb=False)
+    """Linear luminance of a canvas the page returned (post-processing is off: the bytes are linear), rows bottom to
+    top as the canvas holds them and as pinhole_luminance lays out the panorama's views."""
+    return canvas_luminance(canvas, CANVAS, srgb=False)[::-1]
 
 
 def spheres(page, url: str, gains) -> list[np.ndarray]:
