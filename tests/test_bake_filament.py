@@ -12,7 +12,6 @@ pinhole views of the panorama; an x-mirrored bake must fail both the spheres and
 
 from __future__ import annotations
 
-import base64
 import shutil
 
 import numpy as np
@@ -21,6 +20,7 @@ import pytest
 from conftest import shared
 from lightprobe_engines.probes import X_MIRROR as AXES_MIRROR, Y_QUARTER, axis_map
 from lightprobe_engines.runtimes import LUMINANCE, Browser, Server, missing_engines, white_sphere_glb
+from lightprobe_engines.spheres import canvas_luminance, filament_spheres
 from test_engines import pinhole_luminance  # the same camera as the page's skyView
 
 from lightprobe.maps import EnvMap, read_envmap, resample
@@ -152,19 +152,15 @@ def test_filament_parses_our_files_as_cmgen_lays_them_out(files):
 
 
 def luminance(canvas: str) -> np.ndarray:
-    """Linear luminance of a canvas the page returned (post-processing is off: the bytes are linear)."""
-    rgba = np.frombuffer(base64.b64decode(canvas), np.uint8).reshape(CANVAS, CANVAS, 4)
-    return rgba[..., :3].astype(np.float64) / 255 @ LUMINANCE
+    """Linear luminance of a canvas the page returned (post-processing is off: the bytes are linear), rows bottom to
+    top as the canvas holds them and as pinhole_luminance lays out the panorama's views."""
+    return canvas_luminance(canvas, CANVAS, srgb=False)[::-1]
 
 
 def spheres(page, url: str, gains) -> list[np.ndarray]:
     """The diffuse sphere and the metal ones lit by the IBL file at ``url``, each at its gain."""
-    info = page.evaluate("u => window.lightprobe.loadIbl(u)", url)
+    images, info = filament_spheres(page, url, EYE, gains, ROUGHNESSES)
     assert len(info["sh"]) == 27 and info["levels"] == len(LEVELS[url.rsplit("-", 1)[-1]]), info
-    # one frame per call: Filament may skip a frame asked for within the same task
-    images = [luminance(page.evaluate("([e, g, r]) => window.lightprobe.sphereAt(e, g, r)", [list(EYE), g, r]))
-              for r, g in zip(ROUGHNESSES, gains)]
-    page.evaluate("() => window.lightprobe.dropIbl()")
     return images
 
 

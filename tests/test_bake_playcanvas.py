@@ -9,17 +9,24 @@ skybox along six axes; a bake mirrored in z must fail that direction check.
 
 from __future__ import annotations
 
-import base64
 import json
 import shutil
 import warnings
 
 import numpy as np
 import pytest
-
 from conftest import shared
 from lightprobe_engines.probes import X_MIRROR, Y_QUARTER, axis_map
-from lightprobe_engines.runtimes import LUMINANCE, Browser, Server, lit_side, missing_engines
+from lightprobe_engines.runtimes import (
+    LUMINANCE,
+    Browser,
+    Server,
+    lit_side,
+    missing_engines,
+)
+from lightprobe_engines.spheres import canvas_luminance, playcanvas_spheres
+from lightprobe_engines.spheres import mean_difference as differences
+
 from lightprobe.maps import EnvMap, read_envmap
 from lightprobe.maps.images import write_image
 from lightprobe.maps.layouts import LATLONG
@@ -100,9 +107,7 @@ def browser(baked):
 
 
 def run(browser, script: str, args: list):
-    """``script`` on a fresh page: one environment per page, because a second environment in the same PlayCanvas
-    application (a second EnvLighting atlas, or the baked files after one) rendered the metal spheres wrong — to
-    the eye upside down and darker, 70-130 % off the same environment on a fresh page."""
+    """``script`` on a fresh page: one environment per page (see lightprobe_engines.spheres.playcanvas_spheres)."""
     page = browser.page("playcanvas.html")
     try:
         return page.evaluate(script, args)
@@ -111,16 +116,7 @@ def run(browser, script: str, args: list):
 
 
 def luminance(image: str) -> np.ndarray:
-    """Linear luminance of a canvas the page returned (base64 RGBA bytes, sRGB-encoded)."""
-    from lightprobe.maps.tonemap import srgb_decode
-
-    rgba = np.frombuffer(base64.b64decode(image), np.uint8).reshape(CANVAS, CANVAS, 4)
-    return srgb_decode(rgba[..., :3].astype(np.float32) / 255) @ LUMINANCE
-
-
-def differences(images, references) -> list[float]:
-    """Mean |image − reference| over the reference's lit pixels, relative to their mean, per image."""
-    return [float(np.abs(i - o)[o > 0].mean() / o[o > 0].mean()) for i, o in zip(images, references)]
+    return canvas_luminance(image, CANVAS)
 
 
 @pytest.mark.parametrize("probe", ["interior", "spot"])
@@ -139,11 +135,10 @@ def test_playcanvas_spheres_from_our_atlas_as_from_its_own(browser, baked, probe
     peak = float(prefilter_cube(env, 32, [0] + [0.09] * 5).levels[1].max())
     exposures = {"diffuse": 0.4 / float(env.integral() @ LUMINANCE / (4 * np.pi)), "metal": 0.6 / peak}
 
-    views = [{"roughness": r, "exposure": exposures["diffuse" if r is None else "metal"]} for r in ROUGHNESSES]
+    gains = [exposures["diffuse" if r is None else "metal"] for r in ROUGHNESSES]
 
     def spheres(source, args):
-        return [luminance(i) for i in run(browser, "([s, a, e, v]) => window.lightprobe.spheres(s, a, e, v)",
-                                          [source, args, eye, views])]
+        return playcanvas_spheres(browser, source, args, eye, gains, ROUGHNESSES)
 
     own = spheres("own", [url + ".hdr", 4 * SIZE, SKYBOX])
     # PlayCanvas's own result moves with its atlas size: that spread, per roughness, is the floor of what agreement

@@ -14,10 +14,11 @@ import json
 
 import numpy as np
 import pytest
-
 from conftest import shared
 from lightprobe_engines.probes import X_MIRROR, Y_QUARTER, axis_map
 from lightprobe_engines.runtimes import Browser, Server, lit_side, missing_engines
+from lightprobe_engines.spheres import mean_difference as differences
+from lightprobe_engines.spheres import threejs_spheres
 
 pytestmark = pytest.mark.xdist_group("engines")  # one worker, so one browser start for all engine checks
 
@@ -99,14 +100,7 @@ def page(baked):
 
 
 def sphere_images(page, source: str, url: str) -> list[np.ndarray]:
-    images = page.evaluate("([s, u, e, r, n]) => window.lightprobe.spheres(s, u, e, r, n)",
-                           [source, url, EYE, list(ROUGHNESSES), CANVAS])
-    return [np.asarray(i, np.float64).reshape(CANVAS, CANVAS) for i in images]
-
-
-def differences(images, references) -> list[float]:
-    """Mean |Δ| over the sphere's pixels relative to the reference's mean there, per sphere."""
-    return [float(np.abs(i - o)[o > 0].mean() / o[o > 0].mean()) for i, o in zip(images, references)]
+    return threejs_spheres(page, source, url, EYE, ROUGHNESSES, CANVAS)
 
 
 # Bounds per sphere (diffuse, then roughness 0.1, 0.3, 0.6, 0.9) on the mean relative difference from three.js's

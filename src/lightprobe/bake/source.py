@@ -1,9 +1,11 @@
 """The one working form every engine's files are made from: the probe (scaled), its SH, its lights, its GGX chains.
 
 Each quantity is computed once per bake and shared, whatever the number of engines: the radiance SH (world frame,
-bands 0–2), the decomposition into area lights (when asked), and the GGX-prefiltered cube chains, cached by what
-determines them (face size, the α of each level, the frame). Engines convert these at the edge — frame, face order,
-encoding, units — and never filter anew.
+bands 0–2), the decomposition into area lights (when asked), the GGX-prefiltered cube chains, cached by what
+determines them (face size, the α of each level, the frame), and the SH's accuracy against brute-force irradiance,
+cached by the map it describes (the probe or the ambient remainder): engines whose SH differs only in frame or scale
+write the same nine world-frame coefficients converted at the edge, so one measure holds for all of them. Engines
+convert these at the edge — frame, face order, encoding, units — and never filter anew.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from ..lights.lightsfile import LightSet
 from ..maps import EnvMap
 from ..maps.frames import WORLD, Frame
 from ..sh.basis import SHCoeffs, project
+from .accuracy import sh_accuracy
 from .options import BakeOptions
 
 
@@ -48,6 +51,7 @@ class BakeSource:
     _sh: SHCoeffs | None = None
     _lights: tuple | None = None
     _chains: dict = field(default_factory=dict)
+    _sh_accuracy: dict = field(default_factory=dict)
 
     @classmethod
     def from_map(cls, env: EnvMap, options: BakeOptions, name: str = "(in memory)",
@@ -123,6 +127,44 @@ class BakeSource:
             # through the versioned schema, so a bake's lights are exactly what 'lightprobe lights' would write
             self._lights = (dec, read_lights_json(lights_json(dec, project(dec.ambient, 2), self.name)))
             self.timings["lights"] = time.perf_counter() - t0
+
+    def diffuse(self) -> tuple[EnvMap, SHCoeffs]:
+        """What an engine's diffuse term and specular chain hold: the ambient remainder when the bake finds lights
+        (the lights being the engine's own lights, nothing is counted twice), else the probe.
+
+        Returns
+        -------
+        EnvMap
+            Linear RGB radiance, world frame: :meth:`decomposition`'s ambient map, or :attr:`env`.
+        SHCoeffs
+            Its radiance SH, bands 0–2, world frame: the lights file's ambient SH, or :meth:`sh`.
+        """
+        if self.options.lights:
+            from ..exports.lights import ambient_sh
+
+            return self.decomposition().ambient, ambient_sh(self.lights(), [])
+        return self.env, self.sh()
+
+    def sh_accuracy(self, whole_probe: bool = False) -> dict:
+        """The SH's irradiance against brute force over the map it describes (computed once per map).
+
+        Parameters
+        ----------
+        whole_probe : bool, default False
+            Measure the probe's own SH over the probe, even when the bake finds lights (engines whose diffuse term is
+            always the whole probe's); default: the map of :meth:`diffuse`.
+
+        Returns
+        -------
+        dict
+            :func:`lightprobe.bake.accuracy.sh_accuracy` of the map and its world-frame radiance SH.
+        """
+        env, sh = (self.env, self.sh()) if whole_probe else self.diffuse()
+        if id(env) not in self._sh_accuracy:
+            t0 = time.perf_counter()
+            self._sh_accuracy[id(env)] = sh_accuracy(env, sh)
+            self.timings["sh accuracy" + (" (ambient)" if env is not self.env else "")] = time.perf_counter() - t0
+        return self._sh_accuracy[id(env)]
 
     def chain(self, size: int, alphas: tuple[float, ...], frame: Frame = WORLD,
               env: EnvMap | None = None) -> PrefilteredCube:

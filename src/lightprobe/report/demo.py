@@ -21,6 +21,7 @@ from ..maps.tonemap import auto_exposure
 from ..util.errors import InputError
 from ..util.files import move_folder_into_place, sweep_stale_temporaries, temp_path_for, write_text
 from ..util.progress import track
+from .bake import section_bake
 from .batch import section_batch
 from .engines import section_engines, section_exports
 from .glossy import section_glossy
@@ -32,8 +33,8 @@ from .sh import section_design, section_errors, section_irradiance, section_sh
 from .viewer import _viewer_started, section_viewer
 
 SECTIONS = [section_probe, section_layouts, section_speed, section_sh, section_irradiance, section_errors,
-            section_lights, section_design, section_exports, section_engines, section_render, section_glossy,
-            section_viewer, section_batch]
+            section_lights, section_design, section_exports, section_engines, section_bake, section_render,
+            section_glossy, section_viewer, section_batch]
 
 
 def _sections_html(rep: Report) -> str:

@@ -10,14 +10,13 @@ Babylon by the engine tests). With lights: the polynomial in the ``.env`` is the
 from __future__ import annotations
 
 from ...exports.containers import ENV_LOD_GENERATION_SCALE, env_file, warn_if_clipped
-from ...exports.lights import ambient_sh, engine_lights, export_babylon_lights
+from ...exports.lights import export_babylon_lights
 from ...exports.sh import babylon_polynomial
 from ...glossy.prefilter import babylon_alphas
 from ...maps.frames import BABYLON
-from ..accuracy import chain_accuracy, sh_accuracy
 from ..folder import EngineFolder
 from ..source import BakeSource
-from .common import perceptual_roughness, require_full_chain, skybox_panorama
+from .common import manifest_extra, perceptual_roughness, require_full_chain, skybox_panorama
 
 FRAME = BABYLON
 ENCODINGS = ()
@@ -41,10 +40,9 @@ def bake(source: BakeSource, folder: EngineFolder) -> dict:
     options = source.options
     require_full_chain(options, "Babylon's .env")
     alphas = babylon_alphas(options.size, ENV_LOD_GENERATION_SCALE)
-    env = source.decomposition().ambient if options.lights else source.env
+    env, sh = source.diffuse()
     chain = source.chain(options.size, tuple(alphas), FRAME, env=env)
     warn_if_clipped(chain)
-    sh = ambient_sh(source.lights(), []) if options.lights else source.sh()
     folder.add_bytes("environment.env", env_file(chain, babylon_polynomial(sh, FRAME)), "specular+diffuse",
                      "radiance (specular mips); irradiance polynomial (diffuse)", "Babylon .env v2, RGBD PNG",
                      layout="cube", size=options.size, mips=len(alphas),
@@ -52,12 +50,10 @@ def bake(source: BakeSource, folder: EngineFolder) -> dict:
                      roughness_mapping="Babylon's lodGenerationScale 0.8: mip i holds α_i = 2^(i/0.8)/size "
                                        "(α = roughness²), mip 0 the mirror")
     skybox_panorama(source, folder, "skybox.hdr")
-    extra = {"accuracy": {"sh": sh_accuracy(env, sh), "specular": chain_accuracy(env, chain)}}
     if options.lights:
         folder.add_text("lights.json", export_babylon_lights(source.lights(), FRAME), "lights",
                         "irradiance E⊥ (intensity) and linear colour", "JSON")
-        extra["lights"] = engine_lights(source.lights(), FRAME)
-    return extra
+    return manifest_extra(source, chain, FRAME)
 
 
 def usage(folder: EngineFolder) -> str:

@@ -30,11 +30,10 @@ from ...glossy.dfg import multiscatter_lut
 from ...maps.frames import WORLD
 from ...maps.layouts import CUBE, LATLONG
 from ...sh.irradiance import brute_irradiance
-from ..accuracy import chain_accuracy, sh_accuracy
 from ..folder import EngineFolder
 from ..source import BakeSource
 from . import ENCODINGS as ENGINE_ENCODINGS
-from .common import perceptual_roughness
+from .common import manifest_extra, perceptual_roughness
 
 FRAME = WORLD
 ENCODINGS = ENGINE_ENCODINGS["custom"]
@@ -142,7 +141,8 @@ def bake(source: BakeSource, folder: EngineFolder) -> dict:
     folder.add_bytes("dfg.png", png16_bytes(np.clip(dfg, 0, 1)), encoding="PNG 16-bit RGB", **lut)
     folder.add_bytes("dfg.ktx2", ktx2_bytes([dfg], VkFormat.R16G16B16A16_SFLOAT), encoding="KTX2 R16G16B16A16_SFLOAT",
                      **lut)
-    return {"accuracy": {"sh": sh_accuracy(source.env, source.sh()), "specular": chain_accuracy(source.env, chain)}}
+    # the whole probe's, with or without lights: custom renderers get no lights
+    return manifest_extra(source, chain, whole_probe=True)
 
 
 def usage(folder: EngineFolder) -> str:

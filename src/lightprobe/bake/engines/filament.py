@@ -37,7 +37,7 @@ import warnings
 import numpy as np
 
 from ...exports.ktx1 import ktx1_bytes
-from ...exports.lights import ambient_sh, engine_lights, export_filament_lights, perpendicular_irradiance
+from ...exports.lights import ambient_sh, export_filament_lights, perpendicular_irradiance
 from ...exports.packedfloat import UF10_MAX
 from ...exports.sh import export_filament, filament_coefficients
 from ...glossy.prefilter import PrefilteredCube
@@ -45,9 +45,9 @@ from ...maps.frames import FILAMENT
 from ...maps.layouts import CUBE
 from ...maps.resampling.resampler import resample
 from ...util.errors import LightprobeWarning
-from ..accuracy import chain_accuracy, sh_accuracy
 from ..folder import EngineFolder
 from ..source import BakeSource
+from .common import manifest_extra
 
 FRAME = FILAMENT
 ENCODINGS = ()  # cmgen writes R11F_G11F_B10F only, and the web build's createIblFromKtx1 expects a float format
@@ -142,11 +142,9 @@ def warn_if_clipped(levels, what: str) -> None:
 def _diffuse_sh(source: BakeSource):
     """The radiance SH the diffuse term holds: the probe's, or with lights the remainder plus every light but the
     brightest (which becomes the SUN), as export_filament_lights folds them."""
-    if not source.options.lights:
-        return source.sh()
-    lights = source.lights()
-    if not len(lights.radii):
-        return ambient_sh(lights, [])
+    lights = source.lights() if source.options.lights else None
+    if lights is None or not len(lights.radii):
+        return source.diffuse()[1]
     e = [float(perpendicular_irradiance(lights.radii[i], lights.powers[i]).max()) for i in range(len(lights.radii))]
     sun = int(np.argmax(e))
     return ambient_sh(lights, [i for i in range(len(e)) if i != sun])
@@ -170,7 +168,7 @@ def bake(source: BakeSource, folder: EngineFolder) -> dict:
     options = source.options
     n = level_count(options.size, options.mips)
     alphas = filament_alphas(n)
-    env = source.decomposition().ambient if options.lights else source.env
+    env = source.diffuse()[0]
     # the prefilter makes the whole chain down to 1²; the levels past cmgen's last repeat its α = 1 and are dropped
     full = source.chain(options.size, tuple(alphas + [alphas[-1]] * (options.full_chain - n)), FRAME, env=env)
     chain = PrefilteredCube(full.levels[:n], full.alphas[:n], full.frame)
@@ -191,12 +189,11 @@ def bake(source: BakeSource, folder: EngineFolder) -> dict:
                     "SH of irradiance/π pre-scaled for Filament's shader (IndirectLight irradiance(3, sh))",
                     "cmgen sh.txt")
     # the SH is measured against the map it describes: the probe, or the remainder (the folded lights are caps)
-    measured = ambient_sh(source.lights(), []) if options.lights else sh
-    extra = {"accuracy": {"sh": sh_accuracy(env, measured), "specular": chain_accuracy(env, chain)}}
+    extra = manifest_extra(source, chain, FRAME)
     if options.lights:
         folder.add_text("lights.json", export_filament_lights(source.lights(), FRAME), "lights+diffuse",
                         "SUN: E⊥ in lux with the IndirectLight at intensity 1; irradiance: as sh.txt", "JSON")
-        extra["lights"] = engine_lights(source.lights(), FRAME)[:1]
+        extra["lights"] = extra["lights"][:1]  # Filament's one SUN; the others are folded into the SH
     return extra
 
 

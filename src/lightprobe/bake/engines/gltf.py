@@ -19,12 +19,11 @@ from __future__ import annotations
 import numpy as np
 
 from ...exports.containers import glb, gltf_alphas, gltf_ibl_document
-from ...exports.lights import add_gltf_lights, ambient_sh, engine_lights
+from ...exports.lights import GLTF_NODES, add_gltf_lights
 from ...maps.frames import BABYLON, GLTF
-from ..accuracy import chain_accuracy, sh_accuracy
 from ..folder import EngineFolder
 from ..source import BakeSource
-from .common import perceptual_roughness, require_full_chain, skybox_panorama
+from .common import manifest_extra, perceptual_roughness, require_full_chain, skybox_panorama
 
 FRAME = BABYLON
 ENCODINGS = ("rgbd", "ktx2")
@@ -76,18 +75,13 @@ def bake(source: BakeSource, folder: EngineFolder) -> dict:
     options = source.options
     require_full_chain(options, "EXT_lights_image_based")
     alphas = gltf_alphas(options.size)
-    env = source.decomposition().ambient if options.lights else source.env
-    sh = ambient_sh(source.lights(), []) if options.lights else source.sh()
+    env, sh = source.diffuse()
     chain = source.chain(options.size, tuple(alphas), FRAME, env=env)
     document, images = gltf_ibl_document(chain, sh)
     if options.encodings.get("gltf", ENCODINGS[0]) == "ktx2":
         ktx2_variant(source, folder, env)
-    extra = {"accuracy": {"sh": sh_accuracy(env, sh), "specular": chain_accuracy(env, chain)}}
     if options.lights:
-        from ...exports.lights import GLTF_NODES
-
         add_gltf_lights(document, source.lights())
-        extra["lights"] = engine_lights(source.lights(), GLTF_NODES)
     folder.add_bytes("environment.glb", glb(document, images), "specular+diffuse" + ("+lights" if options.lights
                                                                                       else ""),
                      "radiance (specular mips); irradiance E_lm (irradianceCoefficients); lights: E⊥ in lux",
@@ -95,7 +89,8 @@ def bake(source: BakeSource, folder: EngineFolder) -> dict:
                      mips=len(alphas), roughness=[round(float(r), 6) for r in perceptual_roughness(alphas)],
                      roughness_mapping="mip i holds α_i = 2^i/size (α = roughness²), mip 0 the mirror")
     skybox_panorama(source, folder, "skybox.hdr")
-    return extra
+    # the lights as the file's nodes state them
+    return manifest_extra(source, chain, GLTF_NODES)
 
 
 def usage(folder: EngineFolder) -> str:

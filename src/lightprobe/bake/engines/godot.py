@@ -18,12 +18,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...exports.lights import engine_lights
 from ...maps.frames import WORLD
 from ...maps.layouts import LATLONG
-from ..accuracy import sh_accuracy
 from ..folder import EngineFolder
 from ..source import BakeSource
+from .common import manifest_extra
 
 FRAME = WORLD
 ENCODINGS = ()
@@ -121,16 +120,15 @@ def bake(source: BakeSource, folder: EngineFolder) -> dict:
     mapping = "Godot panorama: −Z at the left edge, +X a quarter in, +Y at the top (lat-long turned by half)"
     folder.add_image("sky.exr", godot_panorama(source.env.to(LATLONG, rows).data), "skybox+environment",
                      "radiance", layout="godot-panorama", size=[2 * rows, rows], mapping=mapping)
-    extra = {"accuracy": {"sh": sh_accuracy(source.env, source.sh())}}
-    lights = []
+    # Godot filters its own sky from the whole probe: the SH measured is the probe's
+    extra = manifest_extra(source, lights_frame=FRAME, over_pi=True, whole_probe=True)
+    lights = extra.get("lights", [])
     if source.options.lights:
         ambient = source.decomposition().ambient
         folder.add_image("ambient.exr", godot_panorama(ambient.to(LATLONG, min(rows, 256)).data), "environment",
                          "radiance (the probe without its lights)", layout="godot-panorama",
                          size=[2 * min(rows, 256), min(rows, 256)], mapping=mapping)
         folder.add_text("sky.gdshader", SKY_SHADER, "sky shader", "none", "Godot shading language")
-        lights = engine_lights(source.lights(), FRAME, over_pi=True)
-        extra["lights"] = lights
     folder.add_text("environment.tscn", _scene(lights), "scene", "light_energy = E⊥/π", "Godot 4 text scene")
     return extra
 

@@ -35,14 +35,13 @@ import warnings
 import numpy as np
 
 from ...exports.containers import png_bytes
-from ...exports.lights import engine_lights
 from ...maps import EnvMap
 from ...maps.frames import WORLD, Frame
 from ...maps.layouts import CUBE, LATLONG
 from ...util.errors import LightprobeWarning
-from ..accuracy import chain_accuracy
 from ..folder import EngineFolder
 from ..source import BakeSource
+from .common import manifest_extra
 
 PLAYCANVAS = Frame("playcanvas", np.diag([-1.0, 1.0, -1.0]),
                    "PlayCanvas as it shows an equirect panorama: (−x, y, −z) of world (image centre at its +Z)")
@@ -250,7 +249,7 @@ def bake(source: BakeSource, folder: EngineFolder) -> dict:
     """
     options = source.options
     side = atlas_size(options.size)
-    env = source.decomposition().ambient if options.lights else source.env
+    env = source.diffuse()[0]
     # level i of the chain is atlas level i (face side/4 >> i: as wide as that level's image); its levels past 6
     # are never read, filtered as the last
     cube = max(side // 4, 64)
@@ -276,15 +275,14 @@ def bake(source: BakeSource, folder: EngineFolder) -> dict:
                          "RGBP PNG (PlayCanvas TEXTURETYPE_RGBP)", layout="cube face", size=options.skybox_size,
                          frame=PLAYCANVAS_CUBE.name)
     # PlayCanvas lights diffuse surfaces from the atlas's ambient rect, not from SH: that rect is what is measured
-    extra = {"accuracy": {"specular": chain_accuracy(env, chain), "ambient": ambient_accuracy(env, atlas, side)}}
+    # PlayCanvas's Lambert term (lightDiffuseLambert chunk) is N·L with no 1/π: intensity E⊥/π
+    extra = manifest_extra(source, chain, FRAME, over_pi=True, sh=False)
+    extra["accuracy"]["ambient"] = ambient_accuracy(env, atlas, side)
     if options.lights:
         import json
 
-        # PlayCanvas's Lambert term (lightDiffuseLambert chunk) is N·L with no 1/π: intensity E⊥/π
-        lights = engine_lights(source.lights(), FRAME, over_pi=True)
-        folder.add_text("lights.json", json.dumps({"directionalLights": lights}, indent=1), "lights",
+        folder.add_text("lights.json", json.dumps({"directionalLights": extra["lights"]}, indent=1), "lights",
                         "irradiance E⊥/π (intensity) and linear colour", "JSON")
-        extra["lights"] = lights
     return extra
 
 

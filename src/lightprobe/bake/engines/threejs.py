@@ -35,15 +35,14 @@ import math
 import numpy as np
 
 from ...exports.ktx2 import VkFormat, ktx2_bytes
-from ...exports.lights import ambient_sh, engine_lights, export_threejs_lights
+from ...exports.lights import export_threejs_lights
 from ...exports.sh import export_threejs
 from ...maps import resample
 from ...maps.frames import THREEJS, Frame
 from ...maps.layouts import CUBE
-from ..accuracy import chain_accuracy, sh_accuracy
 from ..folder import EngineFolder
 from ..source import BakeSource
-from .common import perceptual_roughness
+from .common import manifest_extra, perceptual_roughness
 
 FRAME = THREEJS
 # three.js's cube lookup direction of each world direction: its panorama frame with x negated (see the docstring)
@@ -107,7 +106,7 @@ def bake(source: BakeSource, folder: EngineFolder) -> dict:
     vk = VK_FORMATS[encoding]
     alphas = threejs_alphas(options.size)
     top = _max_lod(options.size)
-    env = source.decomposition().ambient if options.lights else source.env
+    env, sh = source.diffuse()
     chain = source.chain(options.size, tuple(alphas), THREEJS_CUBE, env=env)
     written = chain.levels[:top + 1]
     folder.add_bytes("environment.ktx2", ktx2_bytes(_levels(written), vk), "specular+diffuse",
@@ -120,19 +119,16 @@ def bake(source: BakeSource, folder: EngineFolder) -> dict:
     folder.add_bytes("skybox.ktx2", ktx2_bytes(_levels([sky]), vk), "skybox", "radiance",
                      f"KTX2 cube {vk.name}", frame=THREEJS_CUBE.name, layout="cube", size=options.skybox_size,
                      mips=1)
-    sh = ambient_sh(source.lights(), []) if options.lights else source.sh()
     folder.add_text("sh.json", export_threejs(sh, FRAME), "diffuse",
                     "sh-radiance (three.js LightProbe, SphericalHarmonics3)", "JSON")
     # measured on the levels written only (the chain goes on to 1×1 because prefilter_cube makes the full chain)
     shipped = dataclasses.replace(chain, levels=tuple(written), alphas=tuple(chain.alphas[:top + 1]))
-    extra = {"accuracy": {"sh": sh_accuracy(env, sh), "specular": chain_accuracy(env, shipped)},
-             "no_pmrem": "environment.ktx2 holds three.js r187's PMREM levels; marked isPMREMTexture it is sampled "
-                         "as it is (WebGLEnvironments.js)"}
     if options.lights:
         folder.add_text("lights.json", export_threejs_lights(source.lights(), FRAME), "lights",
                         "irradiance E⊥ (intensity, lux) and linear colour", "JSON")
-        extra["lights"] = engine_lights(source.lights(), FRAME)
-    return extra
+    return manifest_extra(source, shipped, FRAME,
+                          no_pmrem="environment.ktx2 holds three.js r187's PMREM levels; marked isPMREMTexture it "
+                                   "is sampled as it is (WebGLEnvironments.js)")
 
 
 def usage(folder: EngineFolder) -> str:

@@ -10,13 +10,12 @@ probe's lights as directional ``Light`` objects (intensity E⊥/π) and the ambi
 
 from __future__ import annotations
 
-from ...exports.lights import engine_lights, export_unity_lights
+from ...exports.lights import export_unity_lights
 from ...exports.sh import export_unity
 from ...maps.frames import UNITY
-from ..accuracy import sh_accuracy
 from ..folder import EngineFolder
 from ..source import BakeSource
-from .common import skybox_panorama
+from .common import manifest_extra, skybox_panorama
 
 FRAME = UNITY
 ENCODINGS = ()
@@ -41,12 +40,11 @@ def bake(source: BakeSource, folder: EngineFolder) -> dict:
     skybox_panorama(source, folder, "environment.exr")
     folder.add_text("LightprobeAmbient.cs", export_unity(source.sh(), FRAME, csharp=True), "diffuse",
                     "SH of irradiance/π in Unity's convention (RenderSettings.ambientProbe)", "C#")
-    extra = {"accuracy": {"sh": sh_accuracy(source.env, source.sh())}}
     if source.options.lights:
         folder.add_text("LightprobeLights.cs", export_unity_lights(source.lights(), FRAME), "lights+diffuse",
                         "directional lights: E⊥/π; ambient remainder: SH of irradiance/π", "C#")
-        extra["lights"] = engine_lights(source.lights(), FRAME, over_pi=True)
-    return extra
+    # LightprobeAmbient.cs is the whole probe's SH: it is what is measured
+    return manifest_extra(source, lights_frame=FRAME, over_pi=True, whole_probe=True)
 
 
 def usage(folder: EngineFolder) -> str:
