@@ -155,6 +155,28 @@ def test_multiscatter_channels_are_the_split_sum_terms():
     np.testing.assert_array_equal(table[..., 2], dfg.sheen_lut(6, samples=256))
 
 
+def test_the_shipped_default_table_holds_the_sums_at_every_texel_we_check(monkeypatch):
+    """multiscatter_lut() at its defaults reads the package's table: it must be the bits split_sum and
+    sheen_albedo give at the same texel centres (a stale or wrong file fails here), and no kernel runs for it."""
+    rng = np.random.default_rng(7)
+    j, i = rng.integers(0, dfg.DEFAULT_SIZE, (2, 40))
+    centres = dfg.texel_centres(dfg.DEFAULT_SIZE)
+    ab = dfg.split_sum(centres[i], centres[j])
+    sheen = dfg.sheen_albedo(centres[i], centres[j])
+
+    def not_summed(*args):
+        raise AssertionError("the default table was summed, not read")
+
+    monkeypatch.setattr(dfg, "split_sum_lut", not_summed)
+    table = dfg.multiscatter_lut()
+    assert table.shape == (dfg.DEFAULT_SIZE, dfg.DEFAULT_SIZE, 3) and table.dtype == np.float64
+    np.testing.assert_array_equal(table[j, i, 0], ab[:, 1])
+    np.testing.assert_array_equal(table[j, i, 1], ab[:, 0] + ab[:, 1])
+    np.testing.assert_array_equal(table[j, i, 2], sheen)
+    table[0, 0, 0] = -1.0  # a copy: the caller may write into it
+    assert dfg.multiscatter_lut()[0, 0, 0] != -1.0
+
+
 def test_tables_are_the_same_bits_every_run():
     first = dfg.multiscatter_lut(12, samples=300)
     assert first.tobytes() == dfg.multiscatter_lut(12, samples=300).tobytes()

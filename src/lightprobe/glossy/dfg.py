@@ -281,6 +281,44 @@ def multiscatter_lut(size: int = DEFAULT_SIZE, sheen: bool = True, visibility: s
     lightprobe.util.errors.UsageError
         An unknown visibility, or ``size`` or ``samples`` out of range.
     """
+    defaults = (size, sheen, visibility, sheen_visibility, samples) == (DEFAULT_SIZE, True, VISIBILITIES[0],
+                                                                        SHEEN_VISIBILITIES[0], DEFAULT_SAMPLES)
+    if defaults and (shipped := _shipped_table()) is not None:
+        return shipped
+    return computed_multiscatter_lut(size, sheen, visibility, sheen_visibility, samples)
+
+
+def _shipped_table() -> np.ndarray | None:
+    """The default table as the package ships it (the same bits this module computes, tests/test_dfg.py checks;
+    128² × 4096 samples × two lobes is seconds of every bake's time otherwise), or None where it is not there."""
+    from ..data import dfg_table_path
+
+    try:
+        table = np.load(dfg_table_path(), allow_pickle=False)
+    except OSError:
+        return None
+    return table if table.shape == (DEFAULT_SIZE, DEFAULT_SIZE, 3) and table.dtype == np.float64 else None
+
+
+def computed_multiscatter_lut(size: int = DEFAULT_SIZE, sheen: bool = True, visibility: str = "height-correlated",
+                              sheen_visibility: str = "neubelt", samples: int = DEFAULT_SAMPLES) -> np.ndarray:
+    """:func:`multiscatter_lut` summed here and now, never read from the package (the shipped table's maker).
+
+    Parameters
+    ----------
+    size, sheen, visibility, sheen_visibility, samples
+        As :func:`multiscatter_lut`.
+
+    Returns
+    -------
+    numpy.ndarray
+        (N, N, 3) float64 (DFG1, DFG2, S), or (N, N, 2) without ``sheen``.
+
+    Raises
+    ------
+    lightprobe.util.errors.UsageError
+        An unknown visibility, or ``size`` or ``samples`` out of range.
+    """
     ab = split_sum_lut(size, visibility, samples)
     channels = [ab[..., 1], ab[..., 0] + ab[..., 1]]
     if sheen:
