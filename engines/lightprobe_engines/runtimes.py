@@ -59,8 +59,9 @@ def require_engines() -> None:
         raise LightprobeError(f"the engine checks need {', '.join(missing)}: run 'bash setup.sh'")
 
 
-def babylon_bundle(engines: Path = ENGINES) -> Path:
-    """``engines/dist`` (of the repository's engines folder unless given): babylon.html's script (:data:`BABYLON_PAGE`)
+def babylon_bundle(engines: Path = ENGINES, page: str = BABYLON_PAGE, folder: str = "dist") -> Path:
+    """``engines/dist`` (of the repository's engines folder unless given): babylon.html's script (:data:`BABYLON_PAGE`;
+    another ``page`` into another ``folder``, e.g. prefilter_peers.mjs into dist-prefilter)
     bundled by esbuild (pinned in package.json) with the Babylon.js modules it imports, so Chromium fetches one file
     and the shader chunks a scene asks for instead of ~750 modules, each found only once its importer has arrived (a
     page load here: 3.0–3.5 s → 1.0 s). Built again when the script or package-lock.json changes (a stamp of both),
@@ -69,20 +70,20 @@ def babylon_bundle(engines: Path = ENGINES) -> Path:
     import hashlib
     import secrets
 
-    dist = engines / "dist"
-    stamp = hashlib.sha256(b"".join((engines / name).read_bytes() for name in (BABYLON_PAGE, "package-lock.json")))
+    dist = engines / folder
+    stamp = hashlib.sha256(b"".join((engines / name).read_bytes() for name in (page, "package-lock.json")))
     stamp = stamp.hexdigest()[:16]
     if (dist / ".stamp").is_file() and (dist / ".stamp").read_text() == stamp:
         return dist
     building = engines / f".dist-{os.getpid()}-{secrets.token_hex(4)}"
     # --ignore-annotations: Babylon's package.json declares which of its files have side effects and leaves out the
     # .env loader, which registers itself on import; esbuild would drop that import otherwise
-    result = subprocess.run([str(engines / "node_modules" / ".bin" / "esbuild"), BABYLON_PAGE, "--bundle",
+    result = subprocess.run([str(engines / "node_modules" / ".bin" / "esbuild"), page, "--bundle",
                              "--format=esm", "--splitting", "--ignore-annotations", f"--outdir={building.name}",
                              "--log-level=error"], cwd=engines, capture_output=True, text=True)
     if result.returncode:
         shutil.rmtree(building, ignore_errors=True)
-        raise LightprobeError(f"esbuild could not bundle engines/{BABYLON_PAGE}: {result.stderr.strip()[:300]}")
+        raise LightprobeError(f"esbuild could not bundle engines/{page}: {result.stderr.strip()[:300]}")
     (building / ".stamp").write_text(stamp)
     old = engines / f".dist-old-{os.getpid()}-{secrets.token_hex(4)}"
     try:
