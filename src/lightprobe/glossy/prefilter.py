@@ -42,7 +42,7 @@ MAX_SIZE = 1024
 DEFAULT_SAMPLES = 128  # GGX samples per texel: past 64 the chain moves by under 1 % (tests)
 DIRECT_BUDGET = 4e8  # kernel evaluations below which a level is summed exactly instead of sampled
 DEFAULT_PEAKS = 1024  # brightest texels summed exactly (see split_peaks)
-BAND_TOLERANCE = 1e-3  # kernel coefficient below which a level drops the bands (measured: see tests)
+BAND_TOLERANCE = 3e-3  # kernel coefficient below which a level drops the bands (bench_prefilter: worst texel < 4 %)
 PEAK_PAIRS = 2e7  # (texel, peak) pairs up to which a level sums the peaks' whole lobes directly
 NEAR_WIDTH = 4.0  # a peak's lobe is summed exactly within 2·NEAR_WIDTH·α of it, the smooth rest in harmonics
 MIN_BANDS = 64  # a wide lobe's kink at r·l = 0 decays as a power, not e^(−2αl): it keeps this many bands at least
@@ -331,7 +331,7 @@ def split_peaks(cube: EnvMap, count: int) -> tuple[EnvMap, np.ndarray, np.ndarra
         (m, 3) float64 RGB power of each peak, the excess radiance times the pixel's solid angle (L·dω).
     """
     data = cube.data.reshape(-1, 3)
-    peak = data.max(axis=1)
+    peak = np.maximum(np.maximum(data[:, 0], data[:, 1]), data[:, 2])
     if count <= 0 or len(peak) <= count:
         return cube, np.zeros((0, 3)), np.zeros((0, 3))
     # float32 throughout: the map's own precision, and no float64 copy of a large map (the bake's peak memory)
@@ -415,17 +415,17 @@ def prefilter_cube(env: EnvMap, size: int, alphas: list[float] | None = None, fr
     lightprobe.util.errors.UsageError
         ``size`` not a power of two or above MAX_SIZE; ``alphas`` not one per level, or one outside [0, 1000).
     """
-    alphas = _checked(size, alphas)
-    same = env.layout == CUBE and env.grid[-1] == size and np.array_equal(frame.to_frame, np.eye(3))
-    source = env if same else resample(env, CUBE, size, rotation=frame.to_frame)
+    alphas, source = _checked(size, alphas), _mirror(env, size, frame)
     spectrum, limits, peak_dirs, peak_power = _harmonics(env, [a for a in alphas if a > 0], peaks, tolerance)
+    turned = None if np.array_equal(frame.to_frame, np.eye(3)) else frame
     levels = []
     for i, alpha in track(list(enumerate(alphas)), "prefiltering GGX mips"):
         s = size >> i
         if alpha == 0:
             levels.append(source.data if i == 0 else box_reduce_to(source, s).data)
             continue
-        r = frame.to_world(CUBE.directions(CUBE.grid_shape(s)).reshape(-1, 3))
+        r = CUBE.directions(CUBE.grid_shape(s)).reshape(-1, 3)
+        r = r if turned is None else frame.to_world(r)
         coeffs, far, inner = limits[alpha]
         if far is None or len(r) * len(peak_dirs) <= PEAK_PAIRS:  # few pairs: every peak's whole lobe, exactly
             value = spectrum.convolved_at(coeffs, r) + _peak_sums(r, peak_dirs, peak_power, alpha)
@@ -433,6 +433,13 @@ def prefilter_cube(env: EnvMap, size: int, alphas: list[float] | None = None, fr
             value = spectrum.convolved_at(coeffs, r, far) + _near_peak_sums(r, peak_dirs, peak_power, alpha, inner)
         levels.append(value.reshape(6, s, s, 3).astype(np.float32))
     return PrefilteredCube(tuple(levels), tuple(float(a) for a in alphas), frame)
+
+
+def _mirror(env: EnvMap, size: int, frame: Frame) -> EnvMap:
+    """The mirror level: ``env`` resampled (energy-conserving) into a ``size`` cube in ``frame``, or itself if it is
+    one."""
+    same = env.layout == CUBE and env.grid[-1] == size and np.array_equal(frame.to_frame, np.eye(3))
+    return env if same else resample(env, CUBE, size, rotation=frame.to_frame)
 
 
 def _checked(size: int, alphas: list[float] | None) -> list[float]:
@@ -471,7 +478,7 @@ def _harmonics(env: EnvMap, alphas: list[float], peaks: int, tolerance: float):
         limits[a] = (coeffs, far, inner)
     need = max(len(c[0]) - 1 for c in limits.values())
     # the far parts are smooth: their bands die out long before the whole kernels' (the points' transform is cheap)
-    point_lmax = max([tail_band_limit(c[1], tolerance * 1e-2) for c in limits.values() if c[1] is not None] or [0])
+    point_lmax = max([tail_band_limit(c[1], tolerance * 1e-3) for c in limits.values() if c[1] is not None] or [0])
     if clipped.layout != LATLONG or rows > 4 * (need + 1):
         rows = min(rows, 2 * (need + 1))
         clipped = resample(clipped, LATLONG, rows)
@@ -511,9 +518,7 @@ def _prefilter_sampled(env: EnvMap, size: int, alphas: list[float] | None = None
     """:func:`prefilter_cube` by direct sums and filtered importance sampling over the working cube's box pyramid
     (peaks split out): the method before the spherical-harmonic one, kept as the benchmarks' baseline
     (benchmarks/bench_prefilter.py). Same arguments, conventions and result."""
-    alphas = _checked(size, alphas)
-    same = env.layout == CUBE and env.grid[-1] == size and np.array_equal(frame.to_frame, np.eye(3))
-    source = env if same else resample(env, CUBE, size, rotation=frame.to_frame)
+    alphas, source = _checked(size, alphas), _mirror(env, size, frame)
     clipped, peak_dirs, peak_power = split_peaks(source, peaks)
     pyramid = box_pyramid(clipped)
     samplers = None

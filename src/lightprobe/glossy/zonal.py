@@ -209,7 +209,8 @@ class Spectrum:
         if lmax > min(height - 1, (width - 1) // 2):
             raise ValueError(f"a {width}×{height} lat-long holds bands up to {min(height - 1, (width - 1) // 2)}")
         self.lmax = lmax
-        self.alm = np.empty((channels, (lmax + 1) * (lmax + 2) // 2), np.complex128)
+        # complex64, what the transform of the float32 map gives: half the bake's largest buffer; widened per level
+        self.alm = np.empty((channels, (lmax + 1) * (lmax + 2) // 2), np.complex64)
         for c in range(channels):
             ring = data[None, :, :, c]
             self.alm[c] = analysis_2d(map=ring, spin=0, lmax=lmax, geometry="F1", phi0=np.pi / width,
@@ -234,17 +235,16 @@ class Spectrum:
         """
         from ducc0.sht.experimental import adjoint_synthesis_general
 
-        self.point_alm = np.zeros_like(self.alm)
+        lmax = self.lmax if lmax is None else min(lmax, self.lmax)
+        self.point_lmax = lmax
+        self.point_alm = np.zeros((self.alm.shape[0], (lmax + 1) * (lmax + 2) // 2), np.complex128)
         if not len(directions):
             return
-        lmax = self.lmax if lmax is None else min(lmax, self.lmax)
         loc = spherical_coordinates(directions)
         for c in range(self.alm.shape[0]):
-            alm = adjoint_synthesis_general(map=np.ascontiguousarray(power[:, c], np.float64)[None], spin=0,
-                                            lmax=lmax, loc=loc, epsilon=SYNTHESIS_EPSILON, nthreads=_threads())[0]
-            for m in range(lmax + 1):  # into this spectrum's layout, band for band
-                start, into = m * (2 * lmax + 1 - m) // 2, int(self._mstart[m])
-                self.point_alm[c, into + m:into + lmax + 1] = alm[start + m:start + lmax + 1]
+            self.point_alm[c] = adjoint_synthesis_general(map=np.ascontiguousarray(power[:, c], np.float64)[None],
+                                                          spin=0, lmax=lmax, loc=loc, epsilon=SYNTHESIS_EPSILON,
+                                                          nthreads=_threads())[0]
 
     def convolved_at(self, coeffs: np.ndarray, directions: np.ndarray,
                      point_coeffs: np.ndarray | None = None) -> np.ndarray:
@@ -276,13 +276,16 @@ class Spectrum:
         scale = np.where(inside, coeffs[np.minimum(band, lmax)], 0.0)
         point_scale = None
         if point_coeffs is not None and self.point_alm is not None:
-            point_scale = np.where(inside, point_coeffs[np.minimum(band, lmax)], 0.0)
+            # the points' bands (to point_lmax, healpy order of their own) added into the map's, m by m
+            small = min(self.point_lmax, lmax)
+            point_scale = [(int(self._mstart[m]) + m, int(m * (2 * self.point_lmax + 1 - m) // 2) + m,
+                            point_coeffs[m:small + 1]) for m in range(small + 1)]
         loc = spherical_coordinates(directions)
         out = np.empty((len(directions), self.alm.shape[0]))
         for c in range(self.alm.shape[0]):
             alm = self.alm[c] * scale
-            if point_scale is not None:
-                alm += self.point_alm[c] * point_scale
+            for into, start, k in point_scale or ():
+                alm[into:into + len(k)] += self.point_alm[c, start:start + len(k)] * k
             out[:, c] = synthesis_general(alm=alm[None], spin=0, lmax=lmax, loc=loc,
                                           mstart=self._mstart[:lmax + 1], epsilon=SYNTHESIS_EPSILON,
                                           nthreads=_threads())[0]
