@@ -9,13 +9,16 @@ assumption, the one Babylon.js, Filament and three.js prefilter with):
 D_α the normalised GGX distribution with α = roughness² (the engines' "alphaG"). α = 0 is the mirror: the map itself.
 Which α each level holds is the engine's choice, so it is an argument; :func:`babylon_alphas` gives Babylon's.
 
-How it is computed: the brightest texels (a sun) are taken out and summed exactly as point sources. The rest is
-summed directly over a pyramid level fine enough for the lobe where that is affordable (the wide lobes of the
-coarse mips), else estimated by filtered importance sampling (Křivánek & Colbert 2008: K Hammersley samples of
-D_α, each looked up trilinearly in the box-filtered pyramid at the level whose texel matches the sample's solid
-angle) near r, with a direct sum over a coarse level for the lobe's far tail. A uniform map stays exactly uniform
-(every part is normalised by the same estimate for L = 1); against brute-force integration over every source
-texel the chain is within 1 % in the median texel (tests/test_prefilter.py).
+How it is computed: with n = v = r the kernel D_α(h)(r·l)⁺ depends on r·l alone, so each level is a convolution of
+the map with a zonal kernel, one multiplication per spherical-harmonic band by the kernel's Legendre coefficient
+(:mod:`lightprobe.glossy.zonal`, transforms by ``ducc0``). The brightest texels (a sun) are first taken out as point
+sources (:func:`split_peaks`); the bounded rest is analysed once, on the source's own lat-long rings (another layout
+is resampled, energy-conserving, to a lat-long first), up to the band the sharpest level needs; each level keeps
+the bands whose coefficient is at least BAND_TOLERANCE of band 0 (at least MIN_BANDS) and is evaluated exactly at
+its texels' directions. A peak's lobe is summed exactly where a level has few texels; on the big levels, exactly
+within 2·NEAR_WIDTH·α of the peak, its smooth far part through the harmonics. Band 0 passes unchanged, so a uniform
+map stays uniform; against brute-force integration over every source pixel each level is within 1 % in the median
+texel and 5 % in the worst (tests/test_prefilter.py; benchmarks/bench_prefilter.py prints the table per level).
 
 Frames: the chain is a :data:`~lightprobe.maps.layouts.CUBE` map (OpenGL face orientation) of the directions of
 ``frame``: texel direction d shows the world direction ``frame.to_world(d)``.
@@ -25,19 +28,24 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
 from ..maps import EnvMap, box_reduce, resample
 from ..util.errors import UsageError
 from ..maps.frames import WORLD, Frame
-from ..maps.layouts import CUBE
+from ..maps.layouts import CUBE, LATLONG
 from ..util.progress import track
 
 MAX_SIZE = 1024
 DEFAULT_SAMPLES = 128  # GGX samples per texel: past 64 the chain moves by under 1 % (tests)
 DIRECT_BUDGET = 4e8  # kernel evaluations below which a level is summed exactly instead of sampled
 DEFAULT_PEAKS = 1024  # brightest texels summed exactly (see split_peaks)
+BAND_TOLERANCE = 3e-3  # kernel coefficient below which a level drops the bands (bench_prefilter: worst texel < 4 %)
+PEAK_PAIRS = 2e7  # (texel, peak) pairs up to which a level sums the peaks' whole lobes directly
+NEAR_WIDTH = 4.0  # a peak's lobe is summed exactly within 2·NEAR_WIDTH·α of it, the smooth rest in harmonics
+MIN_BANDS = 64  # a wide lobe's kink at r·l = 0 decays as a power, not e^(−2αl): it keeps this many bands at least
 LOD_BIAS = 1.0  # Křivánek & Colbert's +1: one level blurrier than the sample's solid angle, against aliasing
 
 
@@ -322,16 +330,35 @@ def split_peaks(cube: EnvMap, count: int) -> tuple[EnvMap, np.ndarray, np.ndarra
     power : numpy.ndarray
         (m, 3) float64 RGB power of each peak, the excess radiance times the pixel's solid angle (L·dω).
     """
-    data = cube.data.reshape(-1, 3).astype(np.float64)
-    peak = data.max(axis=1)
+    data = cube.data.reshape(-1, 3)
+    peak = np.maximum(np.maximum(data[:, 0], data[:, 1]), data[:, 2])
     if count <= 0 or len(peak) <= count:
         return cube, np.zeros((0, 3)), np.zeros((0, 3))
+    # float32 throughout: the map's own precision, and no float64 copy of a large map (the bake's peak memory)
     threshold = np.partition(peak, len(peak) - count - 1)[len(peak) - count - 1]
-    excess = np.maximum(data - threshold, 0.0)
-    hot = np.flatnonzero(excess.max(axis=1) > 0)
-    power = excess[hot] * cube.solid_angles().reshape(-1)[hot, None]
-    clipped = EnvMap((data - excess).reshape(cube.data.shape).astype(np.float32), cube.layout)
-    return clipped, cube.directions().reshape(-1, 3)[hot], power
+    hot = np.flatnonzero(peak > threshold)
+    del peak
+    excess = data[hot].astype(np.float64) - float(threshold)
+    np.maximum(excess, 0.0, out=excess)
+    power = excess * _solid_angles_at(cube, hot)[:, None]
+    clipped = EnvMap(np.minimum(cube.data, threshold), cube.layout)
+    return clipped, _directions_at(cube, hot), power
+
+
+def _solid_angles_at(env: EnvMap, flat: np.ndarray) -> np.ndarray:
+    """The solid angles of the pixels at row-major ``flat`` indices (a lat-long's without a per-pixel table)."""
+    if env.layout == LATLONG:
+        return LATLONG.solid_angles_of(env.grid, flat)
+    return env.solid_angles().reshape(-1)[flat]
+
+
+def _directions_at(env: EnvMap, flat: np.ndarray) -> np.ndarray:
+    """The unit directions (world frame) of the pixels at row-major ``flat`` indices."""
+    if env.layout == LATLONG:
+        from .zonal import latlong_directions
+
+        return latlong_directions(env.grid, flat)
+    return env.directions().reshape(-1, 3)[flat]
 
 
 def _peak_sums(r: np.ndarray, directions: np.ndarray, power: np.ndarray, alpha: float) -> np.ndarray:
@@ -339,17 +366,24 @@ def _peak_sums(r: np.ndarray, directions: np.ndarray, power: np.ndarray, alpha: 
     if not len(directions):
         return np.zeros((len(r), 3))
     total, _ = _lobe_sums(r, directions, np.ones(len(directions)), power, alpha)
-    return total / lobe_integral(alpha)
+    return total / _lobe_integral(float(alpha))
+
+
+@lru_cache(maxsize=256)
+def _lobe_integral(alpha: float) -> float:
+    return lobe_integral(alpha)
 
 
 def prefilter_cube(env: EnvMap, size: int, alphas: list[float] | None = None, frame: Frame = WORLD,
-                   samples: int = DEFAULT_SAMPLES, peaks: int = DEFAULT_PEAKS) -> PrefilteredCube:
+                   samples: int = DEFAULT_SAMPLES, peaks: int = DEFAULT_PEAKS,
+                   tolerance: float = BAND_TOLERANCE) -> PrefilteredCube:
     """The GGX mip chain of ``env`` (radiance): a ``size`` cube and one level per halving down to 1×1.
 
-    Level i is prefiltered with ``alphas[i]`` (default :func:`babylon_alphas`), in the directions of ``frame``. The
-    source is first resampled (energy-conserving) into a cube of ``size`` in ``frame`` (unless it is one already);
-    level 0 (α = 0) is that cube, the mirror image. The brightest ``peaks`` texels are summed exactly
-    (:func:`split_peaks`), the rest directly or with ``samples`` GGX samples per texel (see the module docstring).
+    Level i is prefiltered with ``alphas[i]`` (default :func:`babylon_alphas`), in the directions of ``frame``.
+    Level 0 (α = 0) is the source resampled (energy-conserving) into a cube of ``size`` in ``frame``: the mirror
+    image. Every level of α > 0 is P_α of the source map itself (see the module docstring): the brightest ``peaks``
+    pixels summed exactly as point sources (:func:`split_peaks`), the rest convolved with the GGX kernel in spherical
+    harmonics up to the band where the kernel's coefficient falls below ``tolerance``.
 
     Parameters
     ----------
@@ -363,9 +397,12 @@ def prefilter_cube(env: EnvMap, size: int, alphas: list[float] | None = None, fr
     frame : lightprobe.maps.frames.Frame, default WORLD
         The frame of the cube's directions: texel direction d shows the world direction ``frame.to_world(d)``.
     samples : int, default DEFAULT_SAMPLES (128)
-        GGX samples per texel on the levels estimated by filtered importance sampling.
-    peaks : int, default DEFAULT_PEAKS (1024)
-        The brightest texels summed exactly as point sources (:func:`split_peaks`).
+        Unused by the harmonic method (exact to its band limit); kept so callers that pass it need no change.
+    peaks : int, default DEFAULT_PEAKS
+        The brightest pixels summed exactly as point sources (:func:`split_peaks`).
+    tolerance : float, default BAND_TOLERANCE
+        A level keeps the bands whose normalised kernel coefficient is at least this (:func:`~lightprobe.glossy.zonal.
+        kernel_band_limit`), up to what the source's pixels hold.
 
     Returns
     -------
@@ -378,6 +415,35 @@ def prefilter_cube(env: EnvMap, size: int, alphas: list[float] | None = None, fr
     lightprobe.util.errors.UsageError
         ``size`` not a power of two or above MAX_SIZE; ``alphas`` not one per level, or one outside [0, 1000).
     """
+    alphas, source = _checked(size, alphas), _mirror(env, size, frame)
+    spectrum, limits, peak_dirs, peak_power = _harmonics(env, [a for a in alphas if a > 0], peaks, tolerance)
+    turned = None if np.array_equal(frame.to_frame, np.eye(3)) else frame
+    levels = []
+    for i, alpha in track(list(enumerate(alphas)), "prefiltering GGX mips"):
+        s = size >> i
+        if alpha == 0:
+            levels.append(source.data if i == 0 else box_reduce_to(source, s).data)
+            continue
+        r = CUBE.directions(CUBE.grid_shape(s)).reshape(-1, 3)
+        r = r if turned is None else frame.to_world(r)
+        coeffs, far, inner = limits[alpha]
+        if far is None or len(r) * len(peak_dirs) <= PEAK_PAIRS:  # few pairs: every peak's whole lobe, exactly
+            value = spectrum.convolved_at(coeffs, r) + _peak_sums(r, peak_dirs, peak_power, alpha)
+        else:
+            value = spectrum.convolved_at(coeffs, r, far) + _near_peak_sums(r, peak_dirs, peak_power, alpha, inner)
+        levels.append(value.reshape(6, s, s, 3).astype(np.float32))
+    return PrefilteredCube(tuple(levels), tuple(float(a) for a in alphas), frame)
+
+
+def _mirror(env: EnvMap, size: int, frame: Frame) -> EnvMap:
+    """The mirror level: ``env`` resampled (energy-conserving) into a ``size`` cube in ``frame``, or itself if it is
+    one."""
+    same = env.layout == CUBE and env.grid[-1] == size and np.array_equal(frame.to_frame, np.eye(3))
+    return env if same else resample(env, CUBE, size, rotation=frame.to_frame)
+
+
+def _checked(size: int, alphas: list[float] | None) -> list[float]:
+    """``alphas`` (default :func:`babylon_alphas`) once ``size`` and they are valid; else UsageError."""
     if size < 1 or size & (size - 1):
         raise UsageError(f"a prefiltered cube needs a power-of-two size, got {size}")
     if size > MAX_SIZE:
@@ -386,8 +452,73 @@ def prefilter_cube(env: EnvMap, size: int, alphas: list[float] | None = None, fr
     count = int(math.log2(size)) + 1
     if len(alphas) != count or any(not (0 <= a < 1e3) for a in alphas):
         raise UsageError(f"a {size} cube has {count} mip levels: give as many roughness values (α ≥ 0)")
-    same = env.layout == CUBE and env.grid[-1] == size and np.array_equal(frame.to_frame, np.eye(3))
-    source = env if same else resample(env, CUBE, size, rotation=frame.to_frame)
+    return alphas
+
+
+def _harmonics(env: EnvMap, alphas: list[float], peaks: int, tolerance: float):
+    """The spectrum of ``env`` less its peaks, each α's kernel coefficients cut at its band limit, and the peaks.
+
+    The working lat-long is the source itself when it is one no finer than twice the widest band limit needs (its
+    pixel centres are the transform's rings), else the source resampled (energy-conserving) to that: twice, so the
+    pixels' own averaging moves the kept bands by little."""
+    from .zonal import Spectrum, ggx_legendre, kernel_band_limit, tail_band_limit
+
+    if not alphas:
+        return None, {}, np.zeros((0, 3)), np.zeros((0, 3))
+    clipped, peak_dirs, peak_power = split_peaks(env, peaks)
+    rows = clipped.grid[0] if clipped.layout == LATLONG else max(2, int(math.sqrt(clipped.data[..., 0].size / 2)))
+    cap = max(1, rows - 1)
+    limits = {}
+    for a in set(alphas):
+        # a band past 10/α carries under 1e-5 of a GGX kernel (its coefficients fall as e^(−2αl) past the peak)
+        whole = ggx_legendre(float(a), min(cap, int(10 / a) + MIN_BANDS))
+        coeffs = whole[:min(max(kernel_band_limit(whole, tolerance), MIN_BANDS), len(whole) - 1) + 1]
+        inner = NEAR_WIDTH * a
+        far = None if 2 * inner >= np.pi / 2 else ggx_legendre(float(a), len(coeffs) - 1, inner)
+        limits[a] = (coeffs, far, inner)
+    need = max(len(c[0]) - 1 for c in limits.values())
+    # the far parts are smooth: their bands die out long before the whole kernels' (the points' transform is cheap)
+    point_lmax = max([tail_band_limit(c[1], tolerance * 1e-3) for c in limits.values() if c[1] is not None] or [0])
+    if clipped.layout != LATLONG or rows > 4 * (need + 1):
+        rows = min(rows, 2 * (need + 1))
+        clipped = resample(clipped, LATLONG, rows)
+    spectrum = Spectrum(clipped.data, min(need, rows - 1, (2 * rows - 1) // 2))
+    del clipped
+    spectrum.add_points(peak_dirs, peak_power, point_lmax)
+    return spectrum, limits, peak_dirs, peak_power
+
+
+def _near_peak_sums(r: np.ndarray, directions: np.ndarray, power: np.ndarray, alpha: float,
+                    inner: float) -> np.ndarray:
+    """Σ_j D_α(h_j)(r·l_j)⁺ w(θ_j) Φ_j / W(α) over the point sources within 2·``inner`` of each r: the near part of
+    their lobe (w = 1 − :func:`~lightprobe.glossy.zonal.far_window`; the far part is in the harmonics). The pairs
+    come from a k-d tree of the directions r, so the cost is the pairs', not len(r) × len(directions)."""
+    from scipy.spatial import cKDTree
+
+    from .zonal import far_window
+
+    out = np.zeros((len(r), 3))
+    if not len(directions):
+        return out
+    reach = 2 * np.sin(inner)  # the chord of 2·inner
+    pairs = cKDTree(r).sparse_distance_matrix(cKDTree(directions), reach, output_type="ndarray")
+    if not len(pairs):
+        return out
+    texel, source = pairs["i"].astype(np.int64), pairs["j"].astype(np.int64)
+    cos_l = np.clip(np.einsum("ij,ij->i", r[texel], directions[source]), -1.0, 1.0)
+    theta = np.arccos(cos_l)
+    weight = ggx_d(np.sqrt((1 + cos_l) / 2), alpha) * np.maximum(cos_l, 0.0) * (1 - far_window(theta, inner))
+    for c in range(3):
+        out[:, c] = np.bincount(texel, weight * power[source, c], minlength=len(r))
+    return out / _lobe_integral(float(alpha))
+
+
+def _prefilter_sampled(env: EnvMap, size: int, alphas: list[float] | None = None, frame: Frame = WORLD,
+                       samples: int = DEFAULT_SAMPLES, peaks: int = DEFAULT_PEAKS) -> PrefilteredCube:
+    """:func:`prefilter_cube` by direct sums and filtered importance sampling over the working cube's box pyramid
+    (peaks split out): the method before the spherical-harmonic one, kept as the benchmarks' baseline
+    (benchmarks/bench_prefilter.py). Same arguments, conventions and result."""
+    alphas, source = _checked(size, alphas), _mirror(env, size, frame)
     clipped, peak_dirs, peak_power = split_peaks(source, peaks)
     pyramid = box_pyramid(clipped)
     samplers = None
@@ -434,13 +565,14 @@ def brute_force_prefiltered(env: EnvMap, r: np.ndarray, alpha: float) -> np.ndar
     omega = env.solid_angles().reshape(-1)
     values = env.data.reshape(-1, 3).astype(np.float64)
     out = np.empty((len(r), 3))
-    for start in range(0, len(r), 64):
-        rr = r[start:start + 64]
+    chunk = max(1, (1 << 22) // len(d))  # directions per pass: the (chunk, pixels, 3) temporaries stay ~100 MB
+    for start in range(0, len(r), chunk):
+        rr = r[start:start + chunk]
         h = rr[:, None, :] + d[None, :, :]
         h /= np.maximum(np.linalg.norm(h, axis=-1, keepdims=True), 1e-12)
         cos_l = np.maximum(rr @ d.T, 0.0)
         w = ggx_d(np.sum(h * rr[:, None, :], axis=-1), alpha) * cos_l * omega
-        out[start:start + 64] = (w @ values) / np.maximum(w.sum(axis=1), 1e-30)[:, None]
+        out[start:start + chunk] = (w @ values) / np.maximum(w.sum(axis=1), 1e-30)[:, None]
     return out
 
 
