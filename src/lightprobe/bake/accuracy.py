@@ -4,9 +4,11 @@
   every pixel of the probe reduced (energy-preserving) to REFERENCE_ROWS rows, at REFERENCE_NORMALS normals spread
   evenly over the sphere; irradiance is smooth, so the reduction moves the reference by far less than the error.
 * The specular chain: each level's texels against :func:`lightprobe.glossy.prefilter.brute_force_prefiltered` over
-  every texel of the chain's source cube reduced to at most REFERENCE_CUBE texels a side, at CHAIN_TEXELS texels
-  picked at random (fixed seed) per level. A level whose lobe is narrower than two texels of that cube is not
-  measured there (the reference would be the reduction's own blur): it says so.
+  every pixel of the probe as a lat-long of at most REFERENCE_LATLONG_ROWS rows (the probe itself when it is a
+  lat-long that small; else reduced, energy-preserving), at CHAIN_TEXELS texels picked at random (fixed seed) per
+  level, their directions taken to the world frame. The reference is the probe, not the cube the chain is drawn
+  in: a sun the cube's texels smear is the chain's error, and is measured. A level whose lobe is narrower than two
+  of the reference's pixels is not measured (the reference would be its own pixels' blur): it says so.
 
 Errors are relative, on Rec. 709 luminance: |got − reference| / reference, as the median and the worst.
 """
@@ -16,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..glossy.prefilter import PrefilteredCube, brute_force_prefiltered
-from ..maps import EnvMap, resample
+from ..maps import EnvMap
 from ..maps.layouts import CUBE, LATLONG
 from ..sh.basis import SHCoeffs
 from ..sh.irradiance import brute_irradiance, reference_normals
@@ -24,7 +26,7 @@ from ..sh.irradiance import brute_irradiance, reference_normals
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 REFERENCE_ROWS = 128  # the lat-long the irradiance reference sums over (256×128)
 REFERENCE_NORMALS = 400
-REFERENCE_CUBE = 128
+REFERENCE_LATLONG_ROWS = 256  # the lat-long the chain's reference sums over (512×256)
 CHAIN_TEXELS = 32
 SEED = 7
 
@@ -84,9 +86,10 @@ def chain_accuracy(env: EnvMap, chain: PrefilteredCube) -> dict:
         or ``measured: false`` with the reason (the mirror level; a lobe narrower than the reference's texels);
         ``texels_per_level`` and ``reference``.
     """
-    size = min(chain.size, REFERENCE_CUBE)
-    source = resample(env, CUBE, size, rotation=chain.frame.to_frame)
-    texel = 2.0 / size  # a texel's angular size at a face centre, radians
+    small = env.layout is LATLONG and env.grid[0] <= REFERENCE_LATLONG_ROWS
+    source = env if small else env.to(LATLONG, REFERENCE_LATLONG_ROWS)
+    rows = source.grid[0]
+    texel = np.pi / rows  # a reference pixel's angular height, radians
     rng = np.random.default_rng(SEED)
     levels = []
     for i, (level, alpha) in enumerate(zip(chain.levels, chain.alphas)):
@@ -94,13 +97,15 @@ def chain_accuracy(env: EnvMap, chain: PrefilteredCube) -> dict:
         if alpha == 0:
             entry.update(measured=False, reason="the mirror: the probe resampled into the cube")
         elif alpha < texel:  # the reflected lobe's half-width is about 2α: under two texels
-            entry.update(measured=False, reason=f"the lobe is narrower than two texels of the {size}² reference")
+            entry.update(measured=False, reason=f"the lobe is narrower than two pixels of the {2 * rows}×{rows} "
+                                                "reference")
         else:
             s = level.shape[1]
             r = CUBE.directions(CUBE.grid_shape(s)).reshape(-1, 3)
             pick = rng.choice(len(r), min(CHAIN_TEXELS, len(r)), replace=False)
             got = level.reshape(-1, 3)[pick].astype(np.float64)
-            entry.update(measured=True, **_relative(got, brute_force_prefiltered(source, r[pick], alpha)))
+            world = chain.frame.to_world(r[pick])
+            entry.update(measured=True, **_relative(got, brute_force_prefiltered(source, world, alpha)))
         levels.append(entry)
     return {"levels": levels, "texels_per_level": CHAIN_TEXELS,
-            "reference": f"Σ over every texel of a {size}² cube of the probe, normal = view = r"}
+            "reference": f"Σ over every pixel of a {2 * rows}×{rows} lat-long of the probe, normal = view = r"}
