@@ -80,7 +80,7 @@ if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ] || ! .venv/bin/python -c 'import
   echo "$want" > "$stamp"
 fi
 
-# Compile lightprobe's numba kernels here, once, rather than in the first command (three to four minutes on 2 cores; the
+# Compile lightprobe's numba kernels here, once, rather than in the first command (about two minutes on 2 cores; the
 # demo's own run is then warm). Again only when the kernels' sources changed: lightprobe keys numba's cache folder by
 # them, and the warm-up marks a folder it completed.
 cache="$(.venv/bin/python -c 'import os, lightprobe; print(os.environ["NUMBA_CACHE_DIR"])')"

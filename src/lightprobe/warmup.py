@@ -1,7 +1,7 @@
 """Compile lightprobe's numba kernels once, on tiny inputs, so that later commands load them from numba's cache.
 
 ``setup.sh`` runs ``python -m lightprobe.warmup`` after installing: without it the first ``lightprobe demo`` on a
-machine spends three to four minutes compiling (2 cores), and every first command pays for its own kernels.
+machine spends about two minutes compiling (2 cores), and every first command pays for its own kernels.
 numba caches a kernel per source file and argument types, in ``NUMBA_CACHE_DIR`` (the user's cache folder, see
 :mod:`lightprobe`); the calls here pass the types the commands pass — float32 maps, float64 directions and
 normals, the scenes' arrays — so a kernel met later with other types still compiles then, as it would have.

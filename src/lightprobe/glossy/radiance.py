@@ -29,6 +29,7 @@ from .brdf import BRDF
 from .brdf_sums import reflected_sums
 from ..maps import EnvMap, resample
 from ..util.errors import UsageError
+from ..util.jit import read_only
 from ..maps.layouts import CUBE, Sphere
 from .prefilter import box_pyramid, box_reduce_to, split_peaks
 
@@ -140,13 +141,13 @@ def smooth_radiance(smooth: EnvMap, brdf: BRDF, normals: np.ndarray, views: np.n
     numpy.ndarray
         (N, 3) float64 reflected radiance, RGB, in the environment's units.
     """
-    normals = np.ascontiguousarray(np.asarray(normals, dtype=np.float64).reshape(-1, 3))
-    views = np.ascontiguousarray(np.broadcast_to(np.asarray(views, dtype=np.float64), normals.shape))
+    normals = read_only(np.asarray(normals, dtype=np.float64).reshape(-1, 3))
+    views = read_only(np.broadcast_to(np.asarray(views, dtype=np.float64), normals.shape))
     model, params, table = brdf.kernel()
     out = np.zeros((len(normals), 3))
     dirs, weights = _sources(smooth)
     if len(dirs):
-        reflected_sums(model, params, table, normals, views, dirs, weights, out)
+        reflected_sums(model, params, table, normals, views, read_only(dirs), weights, out)
     return out
 
 
@@ -191,8 +192,8 @@ def reflected_radiance(lighting: Lighting | EnvMap, brdf: BRDF, normals: np.ndar
     """
     if isinstance(lighting, EnvMap):
         lighting = prepare(lighting)
-    normals = np.ascontiguousarray(np.asarray(normals, dtype=np.float64).reshape(-1, 3))
-    views = np.ascontiguousarray(np.broadcast_to(np.asarray(views, dtype=np.float64), normals.shape))
+    normals = read_only(np.asarray(normals, dtype=np.float64).reshape(-1, 3))
+    views = read_only(np.broadcast_to(np.asarray(views, dtype=np.float64), normals.shape))
     if level is None:
         level = lighting.level_for(brdf, len(normals))
     if not 0 <= level < len(lighting.levels):
@@ -203,7 +204,7 @@ def reflected_radiance(lighting: Lighting | EnvMap, brdf: BRDF, normals: np.ndar
                           (np.ascontiguousarray(lighting.peak_directions), np.ascontiguousarray(lighting.peak_power))):
         if len(dirs):
             part = np.empty_like(out)
-            reflected_sums(model, params, table, normals, views, dirs, weights, part)
+            reflected_sums(model, params, table, normals, views, read_only(dirs), weights, part)
             out += part
     return out
 

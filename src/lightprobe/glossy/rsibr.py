@@ -39,7 +39,7 @@ from functools import lru_cache
 import numpy as np
 
 from ..maps import EnvMap
-from ..util.jit import njit, prange
+from ..util.jit import njit, prange, read_only
 from ..util.errors import InputError, UsageError
 from ..maps.layouts import Sphere
 from .radiance import smooth_radiance, sphere_normals, view_frame
@@ -227,8 +227,9 @@ def synthesize(rset: RadianceSet, view: np.ndarray, warp: str | None = None, siz
     corrected = smooth and sums_smooth_part(rset)
     if corrected:
         maps, base = _residuals(rset, sources), np.empty((len(local), 3))
-        _table_values(smooth_table(rset.smooth, rset.brdf, frame), _destination(size, "normal")[0], base)
-    _blend(local, frame, maps, (every * sources).astype(np.int64), np.ascontiguousarray(rset.frames),
+        _table_values(smooth_table(rset.smooth, rset.brdf, frame), read_only(_destination(size, "normal")[0]),
+                      base)
+    _blend(read_only(local), frame, maps, (every * sources).astype(np.int64), np.ascontiguousarray(rset.frames),
            every * weights, warp == "mirror", _valid(rset.size), FADE_START, FADE_END, NORMAL_FADE, corrected, base,
            out)
     data = np.zeros((size, size, 3), np.float32)
@@ -317,7 +318,7 @@ def reflected_by_view(rset: RadianceSet, normals: np.ndarray, views: np.ndarray,
     corrected = smooth and sums_smooth_part(rset) and len(normals) > 0
     if corrected:
         maps, base = _residuals(rset, sources, exact=True), smooth_radiance(rset.smooth, rset.brdf, normals, views)
-    _blend(np.ascontiguousarray(central), np.eye(3), maps, np.ascontiguousarray(sources, dtype=np.int64),
+    _blend(read_only(central), np.eye(3), maps, np.ascontiguousarray(sources, dtype=np.int64),
            np.ascontiguousarray(rset.frames), np.ascontiguousarray(weights), warp == "mirror", _valid(rset.size),
            FADE_START, FADE_END, NORMAL_FADE, corrected, base, out)
     return out
@@ -407,7 +408,7 @@ def _residuals(rset: RadianceSet, needed, exact: bool = False) -> np.ndarray:
             if exact:
                 values = smooth_radiance(rset.smooth, rset.brdf, normals @ frame.T, frame[:, 2])
             else:
-                _table_values(smooth_table(rset.smooth, rset.brdf, frame), normals, values)
+                _table_values(smooth_table(rset.smooth, rset.brdf, frame), read_only(normals), values)
             stack[k][inside] -= values.astype(np.float32)
             done[k] = True
     return stack

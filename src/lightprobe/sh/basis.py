@@ -22,7 +22,7 @@ from math import comb, factorial, pi, sqrt
 
 import numpy as np
 
-from ..util.jit import njit, prange, worth_compiling
+from ..util.jit import njit, prange, read_only, worth_compiling
 from ..maps import EnvMap
 from ..util.errors import UsageError
 from ..maps.frames import WORLD, Frame, frame as frame_named
@@ -253,7 +253,7 @@ def series(l_max: int, d: np.ndarray, coeffs: np.ndarray) -> np.ndarray:
         return basis(l_max, d) @ coeffs
     flat = np.ascontiguousarray(coeffs.reshape(coeffs.shape[0], -1))
     out = np.empty((points, flat.shape[1]))
-    _series(np.ascontiguousarray(d.reshape(-1, 3)), flat, *_recurrence_tables(l_max), out)
+    _series(read_only(d.reshape(-1, 3)), read_only(flat), *_recurrence_tables(l_max), out)
     return out.reshape(d.shape[:-1] + coeffs.shape[1:])
 
 

@@ -112,6 +112,17 @@ def njit(**options):
     return decorate
 
 
+def read_only(a):
+    """``a`` as a C-contiguous read-only array (a view where it is one already): numba compiles a kernel once per
+    argument type, and a read-only array is another type than a writeable one, so the kernels' inputs are passed
+    read-only always — a map's pixels are — and one compile serves every caller."""
+    import numpy as np
+
+    view = np.ascontiguousarray(a).view()
+    view.setflags(write=False)
+    return view
+
+
 def dispatcher(fn):
     """numba's dispatcher of a function decorated with :func:`njit` (which may already have been swapped in for it),
     for compiled code outside the module, such as a test's kernel calling it."""

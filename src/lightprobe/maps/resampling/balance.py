@@ -33,7 +33,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from ...util.jit import njit
+from ...util.jit import njit, read_only
 from ..layout_base import _padding_index
 from ..layouts import CUBE, PAD, Cross, Layout
 from ..envmap import pixel_solid_angles
@@ -147,8 +147,12 @@ class Balance:
         out = np.empty_like(faces) if out is None else out
         scratch = np.empty(faces.shape[1:], np.float32)
         for f in range(faces.shape[0]):
-            _blend_pass(faces[f], self.column_up, self.column_down, 1, 0, scratch)
-            _blend_pass(scratch, self.row_up, self.row_down, 0, 1, out[f])
+            _blend_pass(read_only(faces[f]), self.column_up, self.column_down, 1, 0, scratch)
+            strided = not out[f].flags.c_contiguous  # the pass is compiled for C-ordered faces alone (read_only)
+            face = np.empty_like(scratch) if strided else out[f]
+            _blend_pass(read_only(scratch), self.row_up, self.row_down, 0, 1, face)
+            if strided:
+                out[f] = face
         return out
 
     def delivered(self, per_texel: np.ndarray) -> np.ndarray:

@@ -19,6 +19,7 @@ from ...util import limits
 from ...util.errors import LayoutError
 from ...util.limits import check_memory
 from ...util.progress import track
+from ...util.jit import read_only
 from ..envmap import EnvMap, owned, pixel_directions, pixel_solid_angles
 from ..layouts import CUBE, LATLONG, Cross, Layout
 from . import balance, flux, fused, polar, polar_balance, separable
@@ -272,7 +273,7 @@ class Resampler:
                    else polar.reduced_rows(np.asarray(data), self._levels)[1])
         if self._cells is not None:
             self._cells.apply(reduced)
-        src = np.ascontiguousarray(data).reshape(-1, 3)
+        src = read_only(np.asarray(data).reshape(-1, 3))
         lines, w = self._lines
         out = np.empty((lines * w, 3), np.float32)
         pixels = lines * w

@@ -174,8 +174,8 @@ def _back_subsamples(row, col, n, k, h, w, columns, eye, latlong, pfs, pxs, pys,
             pws[m] = 4.0 / (r * np.sqrt(r))
             wsum += pws[m]
             m += 1
-    return _cube_edge_terms(eye, BACK, row, col, n, n, (k, k, k, k, k, k), eye, latlong, eye, h, w, pfs, pxs, pys,
-                            pws, m, wsum)
+    return _cube_edge_terms(eye, np.int64(BACK), row, col, n, n, (k, k, k, k, k, k), eye, latlong, eye, h, w, pfs, pxs, pys,
+                            pws, np.int64(m), wsum)
 
 
 # Compiled apart, not inlined, as fused._subsamples is and for the same reason (compile time); the kernels pass its

@@ -28,6 +28,17 @@ from .pole_rows import FACTORS as POLE_FACTORS, TIER_HEIGHTS as POLE_TIER_HEIGHT
 # which pixel a point falls in) take fastmath=False.
 KERNEL_FASTMATH = {"contract", "arcp", "nsz", "reassoc"}
 
+# COMPILED_APART: numba inlines an ``inline="always"`` helper by copying its IR, its own inlined callees included,
+# into every call site, so a helper that reaches the layouts' formulas (target_direction, source_position: ~170
+# lines with their atan2s) costs their compile once per copy. Helpers run once per subsample or lookup stay inlined
+# (compiled apart they cost a call each and lose the caller's fastmath: a cube → lat-long convert took 2.5× as long
+# with none inlined); helpers run once per pixel, row or rim pixel — the rates' steps, the cube's edge terms and vertex
+# distance, the rim's arcs and areas, the source rim's frame and pixel tests — are compiled once, apart, with their
+# fastmath stated (a helper that sets none takes its first caller's, and numba's cache keeps whichever came first):
+# False for those that decide which rate, ring or pixel (as their strict callers do), the kernels' for the rest.
+# Their callers pass np.int64(…) where an argument could be a constant: numba compiles a callee once for each
+# literal value it is called with.
+
 LATLONG, CUBE, ANGULAR, SPHERE = 0, 1, 2, 3
 CODES = {"latlong": LATLONG, "cube": CUBE, "angular": ANGULAR, "sphere": SPHERE}
 
@@ -612,7 +623,7 @@ def _on_disc(u, v):  # pragma: no cover - compiled
     return math.hypot(2.0 * u - 1.0, 1.0 - 2.0 * v) <= 1.0
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy", fastmath=False)  # apart: see COMPILED_APART
 def _source_step(tgt_kind, tgt_axes, face, u0, v0, u1, v1, rotation, src_kind, src_axes, src_h,
                  src_w):  # pragma: no cover - compiled
     """How far apart, in source pixels, the source positions of target points (u0, v0) and (u1, v1) land. On a
@@ -656,7 +667,7 @@ def _aligned_cubes(tgt_kind, rotation):  # pragma: no cover - compiled
     return tgt_kind == CUBE and rotation[0, 0] == 1.0 and rotation[1, 1] == 1.0 and rotation[2, 2] == 1.0
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy", fastmath=KERNEL_FASTMATH)  # apart: see COMPILED_APART
 def _from_cube_vertex(tgt_kind, tgt_axes, face, u, v, rotation, src_axes, src_h, src_w):  # pragma: no cover
     """How far, in texels, target point (u, v) lands from the nearest vertex of its cube source face (the larger
     of its distances to the two nearest edges)."""
@@ -664,7 +675,7 @@ def _from_cube_vertex(tgt_kind, tgt_axes, face, u, v, rotation, src_axes, src_h,
     return max(min(px + 0.5, src_w - 0.5 - px), min(py + 0.5, src_h - 0.5 - py))
 
 
-@njit(cache=True, error_model="numpy")  # not inlined: four more copies of the layouts' formulas tripled the compile
+@njit(cache=True, error_model="numpy", fastmath=KERNEL_FASTMATH)  # apart: see COMPILED_APART
 def _rates(tgt_kind, tgt_axes, face, row, col, h, w, k, k_max, rotation, src_kind, src_axes, src_h,
            src_w):  # pragma: no cover - compiled
     """(ku, kv): one target pixel's subsamples across and down — k each, raised up to ``k_max`` until neighbouring
@@ -900,7 +911,7 @@ def _wrapped_angle(a):  # pragma: no cover - compiled
     return a - 2.0 * math.pi * math.floor((a + math.pi) / (2.0 * math.pi))
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy", fastmath=False)  # apart: see COMPILED_APART
 def _arc_cuts(r, a0, a1, b0, b1, centre, lo, hi, cuts):  # pragma: no cover - compiled
     """Sorted angles (relative to ``centre``, within (lo, hi)) where the circle of radius ``r`` crosses the lines of
     square [a0, a1] × [b0, b1], with ``lo`` and ``hi`` themselves, into ``cuts``; returns how many."""
@@ -945,7 +956,7 @@ def _quadrant_area(x, y, r):  # pragma: no cover - compiled
     return r * r * (area if (x >= 0.0) == (y >= 0.0) else -area)
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy", fastmath=False)  # apart: see COMPILED_APART
 def _disc_in_square(r, a0, a1, b0, b1):  # pragma: no cover - compiled
     """Area of the disc of radius ``r`` round the origin within the square [a0, a1] × [b0, b1]."""
     return (_quadrant_area(a1, b1, r) - _quadrant_area(a0, b1, r) - _quadrant_area(a1, b0, r)
@@ -998,7 +1009,8 @@ def _rim_radial(tgt_kind, tgt_axes, rho_lo, rho_hi, centre, rotation, src_kind, 
     span = rho_hi - rho_lo
     u0, v0 = _rim_point(tgt_kind, rho_lo + 0.25 * span, centre)
     u1, v1 = _rim_point(tgt_kind, rho_lo + 0.75 * span, centre)
-    return 2.0 * _source_step(tgt_kind, tgt_axes, 0, u0, v0, u1, v1, rotation, src_kind, src_axes, src_h, src_w)
+    return 2.0 * _source_step(tgt_kind, tgt_axes, np.int64(0), u0, v0, u1, v1, rotation, src_kind, src_axes, src_h,
+                              src_w)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -1051,7 +1063,8 @@ def _rim_subsamples(tgt_kind, tgt_axes, row, col, h, w, rotation, src_kind, src_
     radial = _rim_radial(tgt_kind, tgt_axes, rho_lo, rho_hi, centre, rotation, src_kind, src_axes, src_h, src_w)
     u0, v0 = _rim_point(tgt_kind, rho_hi, centre + 0.25 * (hi - lo) + lo)  # and round its widest arc
     u1, v1 = _rim_point(tgt_kind, rho_hi, centre + 0.75 * (hi - lo) + lo)
-    round_ = 2.0 * _source_step(tgt_kind, tgt_axes, 0, u0, v0, u1, v1, rotation, src_kind, src_axes, src_h, src_w)
+    round_ = 2.0 * _source_step(tgt_kind, tgt_axes, np.int64(0), u0, v0, u1, v1, rotation, src_kind, src_axes, src_h,
+                                src_w)
     budget = pfs.shape[0] - 1  # a row's arc may fall in pieces, each rounded up: a subsample more each
     rows_budget = 3 * budget // 4  # the rest for split bands
     spacing = _rim_spacing(tgt_kind)
@@ -1186,7 +1199,7 @@ def slots(k):  # pragma: no cover - compiled
 # pixel on a face's side takes its share back in the same by-parts form, as lookups at its side's two ends weighted
 # ±(h²/48)·t·J (:func:`_cube_edge_terms`), in its weight sum too: their weights sum to −(h²/48)·Δ(tJ) along the
 # side, what the line integral takes from a map of the pixel's own value, so a uniform map stays exactly uniform.
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy", fastmath=KERNEL_FASTMATH)  # apart: see COMPILED_APART
 def _cube_edge_terms(tgt_axes, face, row, col, h, w, rates, rotation, src_kind, src_axes, src_h, src_w, pfs, pxs,
                      pys, pws, n, wsum):  # pragma: no cover - compiled
     """Append to subsamples 0 … n − 1 of cube pixel (face, row, col) of an h × w face, with ``rates`` as
@@ -1272,7 +1285,7 @@ def _subsamples(tgt_kind, tgt_axes, face, row, col, h, w, rates, rotation, src_k
         n += 1
     if tgt_kind == CUBE:
         n, wsum = _cube_edge_terms(tgt_axes, face, row, col, h, w, (ku, kv, left, right, above, below), rotation,
-                                   src_kind, src_axes, src_h, src_w, pfs, pxs, pys, pws, n, wsum)
+                                   src_kind, src_axes, src_h, src_w, pfs, pxs, pys, pws, np.int64(n), wsum)
     return n, wsum
 
 
@@ -1311,7 +1324,7 @@ def _source_rim_frame(src_kind, src_axes):  # pragma: no cover - compiled
             src_axes[0, 1], src_axes[1, 1], src_axes[2, 1])
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy", fastmath=False)  # apart: see COMPILED_APART
 def _source_rim_polar(src_kind, src_axes, sx, sy, sz):  # pragma: no cover - compiled
     """(ρ, α) of source direction s (unit) round the source's rim direction."""
     dx, dy, dz, ax, ay, az, bx, by, bz = _source_rim_frame(src_kind, src_axes)
@@ -1319,7 +1332,7 @@ def _source_rim_polar(src_kind, src_axes, sx, sy, sz):  # pragma: no cover - com
     return math.acos(c), math.atan2(sx * bx + sy * by + sz * bz, sx * ax + sy * ay + sz * az)
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy", fastmath=False)  # apart: see COMPILED_APART
 def _source_dir(tgt_kind, tgt_axes, face, u, v, rotation):  # pragma: no cover - compiled
     """The unit source direction that target point (u, v) of ``face`` shows."""
     x, y, z, _ = target_direction(tgt_kind, tgt_axes, face, u, v)
@@ -1328,7 +1341,7 @@ def _source_dir(tgt_kind, tgt_axes, face, u, v, rotation):  # pragma: no cover -
     return sx / norm, sy / norm, sz / norm
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy", fastmath=False)  # apart: see COMPILED_APART
 def _target_pixel(tgt_kind, tgt_axes, rotation, sx, sy, sz, h, w):  # pragma: no cover - compiled
     """(face, row, col) of the target pixel that shows source direction s (d = R s)."""
     x = rotation[0, 0] * sx + rotation[0, 1] * sy + rotation[0, 2] * sz
@@ -1340,7 +1353,7 @@ def _target_pixel(tgt_kind, tgt_axes, rotation, sx, sy, sz, h, w):  # pragma: no
     return f, row, col
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", fastmath=KERNEL_FASTMATH)
 def _by_source_rim(tgt_kind, tgt_axes, face, row, col, h, w, rotation, src_kind, src_axes):  # pragma: no cover
     """Whether target pixel (face, row, col) is the one that shows a disc source's rim direction or one of its eight
     neighbours on its face: sampled round that direction before anything else, a disc target's own rim rows
@@ -1356,7 +1369,7 @@ def _by_source_rim(tgt_kind, tgt_axes, face, row, col, h, w, rotation, src_kind,
     return f == face and abs(r - row) <= 1 and across <= 1
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", fastmath=KERNEL_FASTMATH)
 def _source_rim_wanted(tgt_kind, tgt_axes, face, row, col, h, w, rotation, src_kind, src_axes,
                        short):  # pragma: no cover - compiled
     """Whether target pixel (face, row, col) is sampled round a disc source's rim direction: its centre lies within
@@ -1438,7 +1451,7 @@ def _rim_frame_point(frame, rho, alpha):  # pragma: no cover - compiled
             cr * dz + sr * (ca * az + sa * bz))
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy", fastmath=False)  # apart: see COMPILED_APART
 def _in_pixel(frame, rho, alpha, tgt_kind, tgt_axes, rotation, h, w, face, row, col):  # pragma: no cover - compiled
     """Whether source direction (ρ, α) round the rim direction shows in target pixel (face, row, col)."""
     sx, sy, sz = _rim_frame_point(frame, rho, alpha)

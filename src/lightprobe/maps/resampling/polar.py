@@ -27,7 +27,7 @@ import numpy as np
 
 from dataclasses import dataclass
 
-from ...util.jit import njit
+from ...util.jit import njit, read_only
 from ..layouts import Layout
 from . import pole_rows
 
@@ -235,7 +235,7 @@ def reduced_rows(data: np.ndarray, levels: np.ndarray) -> tuple[np.ndarray, np.n
     reduced = np.empty((total, 3), np.float32)
     rows = np.nonzero(levels)[0]
     exact = np.array([halves_exactly(w, level) for level in levels[rows]], bool)
-    _halve_rows(np.ascontiguousarray(data, np.float32), rows[exact], levels, row_offsets, reduced)
+    _halve_rows(read_only(np.asarray(data, np.float32)), rows[exact], levels, row_offsets, reduced)
     _overlap_rows(data, rows[~exact], levels, row_offsets, reduced)
     width = reduced_width(w, max_level(w))
     for r in whole:  # a few rows at each pole

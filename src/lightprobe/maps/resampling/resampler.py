@@ -20,6 +20,7 @@ from ..layouts import CUBE, Cross, Layout
 from ...util import limits
 from ...util.limits import check_memory
 from ...util.progress import track
+from ...util.jit import read_only
 from . import balance, cube_symmetry, flux, fused, polar, polar_balance, pole_rows, separable
 from ..envmap import EnvMap, owned
 from .budget import check_size, resample_memory
@@ -639,6 +640,7 @@ def _plan(source: EnvMap, target: Layout, size: int | None, rotation, samples: i
             valid = np.ones((1, 1, 1), dtype=np.float32)
     all_valid = filled.valid_fraction == 1.0  # latlong, cube: no per-pixel mask
     tgt_valid = _target_valid(filled, grid, faces)
+    img = read_only(img)  # as a map's pixels are: the kernels compile for one array type (util.jit.read_only)
     args = (src_kind, img, valid, *reduction, _axes(source.layout), source.grid[-2], source.grid[-1],
             fused.CODES[filled.name], _axes(filled), faces[1], tgt_valid, all_valid, k, k_max, turn)
     by_symmetry = (symmetric and src_kind == fused.LATLONG and filled.name == "cube"
