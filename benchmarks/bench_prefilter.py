@@ -80,7 +80,7 @@ def commands(repeat: int) -> None:
                 "export --to babylon-env --specular-size 256 (1k)":
                     ["export", str(SUNNY), "--to", "babylon-env", "--specular-size", "256", "-o", f"{tmp}/out.env"]}
         for name, argv in runs.items():
-            cmd = [sys.executable, "-m", "lightprobe.cli", *argv]
+            cmd = [str(Path(sys.executable).with_name("lightprobe")), *argv]
             subprocess.run(cmd, check=True, capture_output=True)  # first use: numba's cache, the OS's file cache
             times = []
             for _ in range(repeat):
