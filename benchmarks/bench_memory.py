@@ -4,7 +4,7 @@
 
 Every command runs in a child process measured from outside (lightprobe_engines.peak.run_measured); the bound
 the project holds is 3× the map. The suite keeps the cases most likely to regress (tests/test_limits.py: info,
-sh, irradiance, convert to cube, mirror ball and cross); this table has every layout.
+sh, irradiance, convert to cube and to a cross); this table has every layout, the disc targets included.
 """
 
 from __future__ import annotations

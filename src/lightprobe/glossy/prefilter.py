@@ -565,13 +565,14 @@ def brute_force_prefiltered(env: EnvMap, r: np.ndarray, alpha: float) -> np.ndar
     omega = env.solid_angles().reshape(-1)
     values = env.data.reshape(-1, 3).astype(np.float64)
     out = np.empty((len(r), 3))
-    chunk = max(1, (1 << 22) // len(d))  # directions per pass: the (chunk, pixels, 3) temporaries stay ~100 MB
+    chunk = max(1, (1 << 22) // len(d))  # directions per pass: the (chunk, pixels) temporaries stay ~100 MB
     for start in range(0, len(r), chunk):
         rr = r[start:start + chunk]
-        h = rr[:, None, :] + d[None, :, :]
-        h /= np.maximum(np.linalg.norm(h, axis=-1, keepdims=True), 1e-12)
-        cos_l = np.maximum(rr @ d.T, 0.0)
-        w = ggx_d(np.sum(h * rr[:, None, :], axis=-1), alpha) * cos_l * omega
+        c = rr @ d.T  # r·l
+        # n = v = r, so r·h = (1 + r·l)/|r + l| = √((1 + r·l)/2): no half vector need be formed (at l = −r, where h
+        # is undefined, (r·l)⁺ is 0 and so is the weight)
+        cos_h = np.sqrt(np.clip(0.5 * (1.0 + c), 0.0, 1.0))
+        w = ggx_d(cos_h, alpha) * np.maximum(c, 0.0) * omega
         out[start:start + chunk] = (w @ values) / np.maximum(w.sum(axis=1), 1e-30)[:, None]
     return out
 
